@@ -1,0 +1,33 @@
+# Two commands do all the set-up on a fresh machine with Python 3.11:
+#   make demo   # closed-loop demo (planner + plant over ROS 2), summary + plot
+#   make test   # the whole test suite (what CI runs: .ci/run)
+# Both create .venv on first use and install the package with ROS 2 Jazzy
+# from PyPI (the 'ros' extra), test tools and benchmark peers.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test bench plan lint clean
+
+$(STAMP): setup.py package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[ros,test,bench]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/flexmotion plan --config config/wie_bernstein.yaml --goal 1.0 --rate 1000
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+bench: $(STAMP)
+	$(PY) bench/planner_latency.py
+
+lint: $(STAMP)
+	$(PY) -m ruff check flexmotion_ros test bench
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache

@@ -1,0 +1,1 @@
+"""The ``flexmotion`` command line (offline planning, comparison, plots, design)."""

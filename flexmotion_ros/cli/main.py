@@ -1,0 +1,56 @@
+"""``flexmotion``: entry point and sub-command registry.
+
+Each sub-command lives in its own module with ``register(subparsers)``, which
+adds its parser and sets ``func(args) -> int``.  Bad input raises
+:class:`~flexmotion_ros.core.errors.FlexmotionError` (or ``SolverError``);
+it is printed as one line on stderr with exit status 2, and nothing goes to
+stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..core.errors import FlexmotionError, SolverError
+
+#: Modules that provide sub-commands, in help order.
+COMMAND_MODULES = [
+    "flexmotion_ros.cli.plan_cmd",
+    "flexmotion_ros.cli.model_cmd",
+]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2
+        sys.stderr.write(f"flexmotion: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="flexmotion", description="Time-optimal, vibration-free moves for flexible machines.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``flexmotion``; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (FlexmotionError, SolverError) as exc:
+        sys.stderr.write(f"flexmotion: error: {exc}\n")
+        return 2
+
+
+def entry() -> None:
+    """Console-script entry point."""
+    raise SystemExit(main())
+
+
+if __name__ == "__main__":
+    entry()

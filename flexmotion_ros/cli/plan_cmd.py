@@ -1,0 +1,77 @@
+"""``flexmotion plan``: plan one move offline from a parameter file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+
+from ..core.boundary import motion_to_rest, rest_to_rest, state_to_rest
+from ..core.config import load_config
+from ..core.errors import GoalError
+from ..core.planning import plan_move
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan", help="plan a move from rest (or from a velocity) and print it")
+    p.add_argument("--config", required=True, help="ROS 2 parameter file (model, u_max, rate_hz, ...)")
+    p.add_argument("--goal", type=float, help="target position (m or rad); the move starts at rest at 0")
+    p.add_argument("--initial-velocity", type=float, dest="initial_velocity", help="initial rigid-body velocity")
+    p.add_argument("--rate", type=float, help="also plan the exact zero-order-hold sequence at this rate (Hz)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def problem_from_args(config, goal: float | None, initial_velocity: float | None):
+    """The move a ``plan``-like command asks for (shared by other commands)."""
+    if goal is None and initial_velocity is None:
+        raise GoalError("goal", "give --goal GAMMA, --initial-velocity NU, or both")
+    for name, v in (("goal", goal), ("initial_velocity", initial_velocity)):
+        if v is not None and not math.isfinite(v):
+            raise GoalError(name, f"must be finite, got {v}")
+    model, um = config.model, config.u_max
+    if goal is not None:
+        config.check_goal(goal)
+    if initial_velocity is None:
+        return rest_to_rest(model, um, goal)
+    if goal is None:
+        return motion_to_rest(model, um, initial_velocity)
+    x0 = model.rest_state()
+    x0[1] = initial_velocity
+    return state_to_rest(model, um, x0, goal)
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    problem = problem_from_args(config, args.goal, args.initial_velocity)
+    rate = args.rate
+    result = plan_move(config, problem, rate_hz=rate)
+    out = result.summary()
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(_text(out))
+    return 0
+
+
+def _text(out: dict) -> str:
+    lines = [
+        f"method            {out['method']}",
+        f"duration          {out['duration']:.9f} s",
+        f"switch times      {', '.join(f'{t:.9f}' for t in out['switch_times']) or '-'} s",
+        f"levels            {', '.join(f'{v:+g}' for v in out['levels'])}",
+        f"final-state error {out['final_state_error']:.3e} (relative {out['final_state_error_relative']:.1e})",
+        f"certified         {out['certified']} ({out['certificate']['message']})",
+        f"solve time        {out['solve_time_s'] * 1e3:.2f} ms",
+    ]
+    if "samples" in out:
+        lines += [
+            f"rate              {out['rate_hz']:g} Hz",
+            f"samples           {out['samples']} ({out['sampled_duration']:.6f} s, "
+            f"{'proved fewest' if out['minimal'] else 'not proved fewest'})",
+            f"sampled error     {out['sampled_final_state_error']:.3e}",
+            f"peak command      {np.max(np.abs(out['commands'])) if out['commands'] else 0.0:.9g}",
+        ]
+    return "\n".join(lines)

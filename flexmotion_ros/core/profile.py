@@ -1,0 +1,146 @@
+"""Result types of the planners."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .boundary import MoveProblem
+from .certificate import Certificate
+from .simulation import PiecewiseConstant
+
+
+@dataclass
+class BangBangProfile:
+    """A continuous-time bang-bang input and its checks.
+
+    Attributes
+    ----------
+    problem : MoveProblem
+        What was planned.
+    switch_times : ndarray
+        Interior switching times (s), increasing.
+    levels : ndarray
+        Input on each interval (one more than ``switch_times``), each ``+-u_max``.
+    duration : float
+        Move time ``T`` (s).
+    final_state : ndarray
+        State at ``T`` from the exact matrix-exponential simulation (absolute
+        coordinates; with a free final position, the position reached).
+    final_state_error : float
+        ``max |x(T) - x_f|`` over the constrained states (state units).
+    final_state_error_relative : float
+        The same, each state divided by its scale during the move.
+    certificate : Certificate
+        Pontryagin certificate.
+    solve_time_s : float
+        Wall time of the planner (s).
+    """
+
+    problem: MoveProblem
+    switch_times: np.ndarray
+    levels: np.ndarray
+    duration: float
+    final_state: np.ndarray
+    final_state_error: float
+    final_state_error_relative: float
+    certificate: Certificate
+    solve_time_s: float = 0.0
+    iterations: int = 0
+    method: str = "time_optimal"
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def certified(self) -> bool:
+        """Whether the Pontryagin certificate passed."""
+        return bool(self.certificate.passed)
+
+    def input(self) -> PiecewiseConstant:
+        """The input as a :class:`PiecewiseConstant`."""
+        return PiecewiseConstant.from_switches(self.switch_times, self.levels, self.duration)
+
+    def __call__(self, t) -> np.ndarray:
+        """Input ``u(t)`` (0 outside the move)."""
+        return self.input()(t)
+
+    def to_dict(self) -> dict:
+        """JSON-friendly summary."""
+        return {
+            "method": self.method,
+            "duration": float(self.duration),
+            "switch_times": [float(t) for t in self.switch_times],
+            "levels": [float(v) for v in self.levels],
+            "final_state": [float(v) for v in self.final_state],
+            "final_state_error": float(self.final_state_error),
+            "final_state_error_relative": float(self.final_state_error_relative),
+            "certified": self.certified,
+            "certificate": self.certificate.to_dict(),
+            "solve_time_s": float(self.solve_time_s),
+        }
+
+
+@dataclass
+class SampledProfile:
+    """A zero-order-hold input at a fixed rate and its checks.
+
+    Attributes
+    ----------
+    problem : MoveProblem
+    commands : ndarray
+        ``u_k`` held on ``[k dt, (k+1) dt)``; ``|u_k| <= u_max``.
+    dt : float
+        Sample period (s).
+    states : ndarray
+        Exact states at every sample instant (``len(commands) + 1`` rows,
+        absolute coordinates), from the matrix-exponential simulation.
+    final_state_error, final_state_error_relative : float
+        As for :class:`BangBangProfile`, at the last sample instant.
+    minimal : bool
+        Whether ``len(commands)`` is proved to be the fewest samples.
+    lower_bound_samples : int
+        Samples below which no sequence can reach the target (proved).
+    continuous : BangBangProfile or None
+        The continuous optimum the sampled one was built from.
+    """
+
+    problem: MoveProblem
+    commands: np.ndarray
+    dt: float
+    states: np.ndarray
+    final_state_error: float
+    final_state_error_relative: float
+    minimal: bool
+    lower_bound_samples: int
+    continuous: BangBangProfile | None = None
+    solve_time_s: float = 0.0
+    method: str = "time_optimal"
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def samples(self) -> int:
+        """Number of commands."""
+        return int(self.commands.size)
+
+    @property
+    def duration(self) -> float:
+        """``samples * dt`` (s)."""
+        return self.samples * self.dt
+
+    def input(self) -> PiecewiseConstant:
+        """The input as a :class:`PiecewiseConstant`."""
+        return PiecewiseConstant.from_samples(self.commands, self.dt)
+
+    def to_dict(self) -> dict:
+        """JSON-friendly summary (commands included)."""
+        return {
+            "method": self.method,
+            "rate_hz": 1.0 / self.dt,
+            "samples": self.samples,
+            "sampled_duration": float(self.duration),
+            "minimal": bool(self.minimal),
+            "lower_bound_samples": int(self.lower_bound_samples),
+            "sampled_final_state_error": float(self.final_state_error),
+            "sampled_final_state_error_relative": float(self.final_state_error_relative),
+            "commands": [float(v) for v in self.commands],
+        }

@@ -1,0 +1,207 @@
+"""Zeros of the switching function ``S(tau) = nu^T e^{A tau} B``.
+
+Pontryagin's principle (seed eqs. 2.33-2.35) makes the time-optimal input
+``u = -u_max sgn(lambda^T B)``; with ``lambda(t) = e^{A^T (T - t)} lambda(T)``
+and time-to-go ``tau = T - t`` the sign is that of
+``S(tau) = nu^T e^{A tau} B`` (``nu = -lambda(T)``).  Its zeros are the
+switching times.
+
+The zeros are bracketed on a grid fine enough for the fastest mode and
+refined, all at once, by a safeguarded Newton iteration.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+class SwitchingSystem(Protocol):
+    """What the planners need of a linear system (see :class:`ModalResponse`)."""
+
+    n: int
+
+    def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False): ...
+
+    def expm_B(self, tau: np.ndarray) -> np.ndarray: ...
+
+    def input_integral(self, tau: np.ndarray) -> np.ndarray: ...
+
+    def expm_x(self, tau: float, x: np.ndarray) -> np.ndarray: ...
+
+    def A_x(self, x: np.ndarray) -> np.ndarray: ...
+
+    def switching_derivative_bounds(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]: ...
+
+
+#: Grid points per half period of the fastest damped mode.
+POINTS_PER_HALF_PERIOD = 8
+MIN_GRID_POINTS = 64
+
+
+def fastest_frequency(system) -> float:
+    """Largest damped frequency (rad/s) of ``system``, 0 for a rigid body."""
+    wd = getattr(system, "wd", None)
+    return float(np.max(wd)) if wd is not None and np.size(wd) else 0.0
+
+
+def sample_grid(system, T: float, density: float = 1.0) -> np.ndarray:
+    """Sample times on ``[0, T]`` for bracketing zeros of ``S``."""
+    wmax = fastest_frequency(system)
+    n = MIN_GRID_POINTS
+    if wmax > 0.0:
+        n = max(n, int(math.ceil(T * wmax / math.pi * POINTS_PER_HALF_PERIOD)))
+    n = int(math.ceil(n * density))
+    return np.linspace(0.0, T, n + 1)
+
+
+def refine_roots(f, a: np.ndarray, b: np.ndarray, fa: np.ndarray, fb: np.ndarray, fscale: float | None = None) -> np.ndarray:
+    """Zeros of ``f`` in brackets ``[a, b]`` (``fa * fb <= 0``), to machine precision.
+
+    ``f(t)`` returns ``(value, derivative)``.  Newton steps, with bisection
+    whenever a step leaves the bracket; all brackets at once.  A value below
+    ``16 eps fscale`` (rounding noise of ``f``: pass the magnitude of its
+    terms) counts as zero.
+    """
+    noise = 16.0 * np.finfo(float).eps * (fscale if fscale is not None else float(np.max(np.abs(np.concatenate([fa, fb])), initial=0.0)))
+    a = a.copy()
+    b = b.copy()
+    fa = fa.copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = a - fa * (b - a) / (fb - fa)  # regula falsi start
+    t = np.where(np.isfinite(t), np.clip(t, a, b), 0.5 * (a + b))
+    active = np.ones(t.shape, dtype=bool)
+    eps = np.finfo(float).eps
+    for _ in range(100):
+        idx = np.flatnonzero(active)
+        ta, aa, ba, faa = t[idx], a[idx], b[idx], fa[idx]
+        v, dv = f(ta)
+        same = np.sign(v) == np.sign(faa)
+        aa = np.where(same, ta, aa)
+        faa = np.where(same, v, faa)
+        ba = np.where(same, ba, ta)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = v / dv
+        tol = 4.0 * eps * np.maximum(np.abs(ta), 1e-300)
+        done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((ba - aa) <= tol)
+        tn = ta - step
+        bad = ~np.isfinite(tn) | (tn < aa) | (tn > ba)
+        tn = np.where(done, ta - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (aa + ba), tn))
+        a[idx], b[idx], fa[idx], t[idx] = aa, ba, faa, tn
+        active[idx[done]] = False
+        if not active.any():
+            break
+    return t
+
+
+MAX_DEPTH = 40
+
+
+@dataclass
+class RootIsolation:
+    """Zeros of ``S`` on ``[0, T]``, isolated with proof.
+
+    Attributes
+    ----------
+    roots : ndarray
+        Sign changes of ``S`` (time-to-go, s), increasing, refined to machine precision.
+    sign0 : float
+        Sign of ``S`` on ``[0, roots[0])``.
+    unproved : int
+        Cells where neither zero-freeness nor monotonicity could be proved
+        within :data:`MAX_DEPTH` bisections or a work budget (a tangency, a
+        cluster of zeros closer than ``T / 2**MAX_DEPTH``, or ``S`` at the
+        level of rounding noise).  Zero means every sign change of
+        ``S`` on ``[0, T]`` is in ``roots`` and there are no others.
+    """
+
+    roots: np.ndarray
+    sign0: float
+    unproved: int
+
+
+TAYLOR_ORDER = 8
+
+
+def isolate_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None) -> RootIsolation:
+    """All sign changes of ``S`` on ``[0, T]``, isolated with proof.
+
+    On a cell ``[a, b]`` of width ``h``, Taylor's theorem at ``a`` with the
+    derivatives ``S^(j)(a)``, ``j <= K``, and a global bound ``M`` on
+    ``|S^(K+1)|`` bounds ``S'`` on the cell::
+
+        |S'(t) - S'(a)| <= sum_{j=2..K} |S^(j)(a)| h^(j-1)/(j-1)! + M h^K/K! =: R
+
+    The cell holds no zero if ``S(a)``, ``S(b)`` have one sign and
+    ``|S(a)| + |S(b)| > (|S'(a)| + R) h``; it holds exactly one if they
+    differ and ``|S'(a)| > R`` (``S`` monotone).  Other cells are halved.
+    Local derivatives matter: for short moves ``S`` is a small difference of
+    large terms, and global Lipschitz bounds would prove nothing.  Close
+    clusters of zeros (a short blip between two samples, three zeros in one
+    cell), which sampling signs alone misses, are found this way.
+    """
+    if grid is None:
+        grid = sample_grid(system, T)
+    K = TAYLOR_ORDER
+    M = system.switching_derivative_bound(nu, K + 1)
+    fact = np.array([math.factorial(j) for j in range(K + 1)], dtype=float)
+    D = np.array(system.switching(nu, grid, order=K))  # (K+1, len(grid))
+    a, b = grid[:-1], grid[1:]
+    Da = D[:, :-1]
+    Sb, dSb = D[0, 1:], D[1, 1:]
+    br_a, br_b, br_Sa, br_Sb = [], [], [], []
+    unproved = 0
+    budget = 4 * grid.size + 1000  # cells in work at once; beyond it, stop proving
+    for depth in range(MAX_DEPTH + 1):
+        h = b - a
+        Sa, dSa = Da[0], Da[1]
+        hp = h[None, :] ** np.arange(1, K)[:, None]  # h^(j-1) for j = 2..K
+        R = np.sum(np.abs(Da[2:]) * hp / fact[1:K, None], axis=0) + M * h**K / fact[K]
+        change = np.sign(Sa) * np.sign(Sb) < 0
+        free = ~change & (np.abs(Sa) + np.abs(Sb) > (np.abs(dSa) + R) * h)
+        mono = np.abs(dSa) > R
+        one = change & mono
+        br_a.append(a[one])
+        br_b.append(b[one])
+        br_Sa.append(Sa[one])
+        br_Sb.append(Sb[one])
+        todo = ~(free | mono)  # a monotone cell without sign change holds no zero
+        if not todo.any():
+            break
+        a, b, Da, Sb, dSb = a[todo], b[todo], Da[:, todo], Sb[todo], dSb[todo]
+        if depth == MAX_DEPTH or a.size > budget:
+            # give up proving: keep plain sign changes, report the cells
+            unproved = int(a.size)
+            last = np.sign(Da[0]) * np.sign(Sb) < 0
+            br_a.append(a[last])
+            br_b.append(b[last])
+            br_Sa.append(Da[0][last])
+            br_Sb.append(Sb[last])
+            break
+        mid = 0.5 * (a + b)
+        Dm = np.array(system.switching(nu, mid, order=K))
+        a, b = np.concatenate([a, mid]), np.concatenate([mid, b])
+        Da = np.concatenate([Da, Dm], axis=1)
+        Sb = np.concatenate([Dm[0], Sb])
+        dSb = np.concatenate([Dm[1], dSb])
+    a = np.concatenate(br_a)
+    sign0 = float(np.sign(D[0, 0]) or np.sign(D[1, 0]) or 1.0)
+    if a.size == 0:
+        return RootIsolation(np.empty(0), sign0, unproved)
+    b = np.concatenate(br_b)
+    mag0, _ = system.switching_magnitude(nu, T)
+
+    def fS(t):
+        return system.switching(nu, t, derivative=True)
+
+    roots = np.sort(refine_roots(fS, a, b, np.concatenate(br_Sa), np.concatenate(br_Sb), mag0))
+    return RootIsolation(roots, sign0, unproved)
+
+
+def find_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None):
+    """Sign changes of ``S`` on ``(0, T)``: ``(roots, sign0)`` (see :func:`isolate_roots`)."""
+    iso = isolate_roots(system, nu, T, grid)
+    return iso.roots, iso.sign0

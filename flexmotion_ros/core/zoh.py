@@ -1,0 +1,237 @@
+"""Exact zero-order-hold time-optimal moves at a fixed sample rate.
+
+A planner that streams at ``rate_hz`` sends a sequence ``u_0, ..., u_{K-1}``,
+each held for ``dt = 1/rate_hz``.  Sampling the continuous bang-bang profile
+naively does not reach the target (the switches fall between samples).  This
+module finds the *fewest* samples ``K`` and commands ``|u_k| <= u_max`` that
+bring the model exactly to rest at the target at sample ``K``.
+
+Method
+------
+With ``g_m = e^{A m dt} Gamma(dt)`` (``m`` samples to go) the final state is
+zero iff ``sum_m g_m u_m = w_K := -e^{A K dt} x0``.  For each ``K`` the
+linear program ``t*(K) = min t  s.t.  sum g_m u_m = w_K, |u_m| <= t`` gives
+the smallest peak command that arrives in ``K`` samples; ``K`` is feasible
+iff ``t*(K) <= u_max``, and feasibility is monotone in ``K`` (hold zero after
+arriving).  Lower bounds come with proofs:
+
+* the continuous optimum ``T*``: any sequence is an admissible continuous
+  input, so ``K dt >= T*``;
+* weak duality: for any ``nu``, ``t*(K) >= nu^T w_K / sum_m |nu^T g_m|``; a
+  ratio above ``u_max`` proves that ``K`` samples cannot reach the target.
+
+Far from the continuous switches the optimal commands sit at ``+-t`` with
+the sign of the continuous switching function, so the LP is solved with only
+windows around the switches free, and the window solution is accepted only
+if its dual certifies it for the full problem (signs agree on every fixed
+sample); otherwise the windows grow.  The solution is then corrected to an
+exact final state and checked by matrix-exponential simulation.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.optimize import linprog
+
+from .boundary import MoveProblem
+from .errors import GoalError, SolverError
+from .modal_response import ModalResponse
+from .model import check_positive
+from .profile import BangBangProfile, SampledProfile
+from .simulation import simulate_samples
+from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
+
+#: Relative slack on the bound when accepting an LP solution before correction.
+BOUND_RTOL = 1e-12
+MAX_EXTRA_SAMPLES = 200
+
+
+def _sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
+    """``g_m = e^{A m dt} Gamma(dt)`` for ``m = 0..K-1``, shape ``(K, n)``."""
+    gam = system.input_integral(np.array([dt]))[0]
+    return system.expm_x_many(dt * np.arange(K), gam)
+
+
+def _window_mask(S: np.ndarray, width: int) -> np.ndarray:
+    """Samples within ``width`` of a sign change of ``S`` (and the first/last ``width``)."""
+    K = S.size
+    free = np.zeros(K, dtype=bool)
+    change = np.flatnonzero(np.sign(S[1:]) != np.sign(S[:-1]))
+    for c in change:
+        free[max(0, c - width + 1) : min(K, c + width + 1)] = True
+    free[:width] = True  # the first samples before arrival absorb the end effects
+    free[K - width :] = True
+    return free
+
+
+def _solve_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
+    """``min t`` with samples outside ``free`` fixed at ``signs * t``.  Returns ``(u, t, nu)`` or None."""
+    F = np.flatnonzero(free)
+    fixed = ~free
+    nF = F.size
+    c_fix = (G[fixed] * signs[fixed, None]).sum(axis=0)
+    A_eq = np.column_stack([G[F].T, c_fix])
+    cost = np.zeros(nF + 1)
+    cost[-1] = 1.0
+    # -t <= u_f <= t
+    A_ub = np.zeros((2 * nF, nF + 1))
+    A_ub[np.arange(nF), np.arange(nF)] = 1.0
+    A_ub[nF + np.arange(nF), np.arange(nF)] = -1.0
+    A_ub[:, -1] = -1.0
+    res = linprog(
+        cost,
+        A_ub=A_ub,
+        b_ub=np.zeros(2 * nF),
+        A_eq=A_eq,
+        b_eq=w,
+        bounds=[(None, None)] * nF + [(0.0, None)],
+        method="highs",
+    )
+    if res.status != 0:
+        return None
+    t = float(res.x[-1])
+    u = signs * t
+    u[F] = res.x[:nF]
+    return u, t, np.asarray(res.eqlin.marginals, dtype=float)
+
+
+def _dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray) -> float:
+    """Weak-duality lower bound on the peak command needed (any ``nu``)."""
+    denom = float(np.sum(np.abs(G @ nu)))
+    return float(nu @ w) / denom if denom > 0.0 else -math.inf
+
+
+def _correct(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float) -> np.ndarray | None:
+    """Make ``G^T u = w`` exact (to rounding) with a least-norm change on samples with slack."""
+    u = np.clip(u, -u_max, u_max)
+    for _ in range(3):
+        r = w - G.T @ u
+        slack = u_max - np.abs(u)
+        S = np.flatnonzero(slack > 1e-9 * u_max)
+        if S.size < G.shape[1]:
+            S = np.argsort(-slack)[: max(G.shape[1], 1)]
+        GS = G[S]
+        du, *_ = np.linalg.lstsq(GS.T, r, rcond=None)
+        u = u.copy()
+        u[S] += du
+        if np.max(np.abs(u)) > u_max:
+            over = np.max(np.abs(u)) - u_max
+            if over > 1e-12 * u_max:
+                return None
+            u = np.clip(u, -u_max, u_max)
+    return u
+
+
+def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile | None = None) -> SampledProfile:
+    """Fewest zero-order-hold samples at ``rate_hz`` that reach rest exactly.
+
+    Parameters
+    ----------
+    problem : MoveProblem
+        The move.
+    rate_hz : float
+        Command rate (Hz), ``> 0``.
+    continuous : BangBangProfile, optional
+        The continuous time-optimal profile of ``problem`` if already known.
+
+    Returns
+    -------
+    SampledProfile
+        ``minimal`` is True when ``samples - 1`` is proved infeasible.
+
+    Raises
+    ------
+    SolverError
+        If no sequence passes the exact final-state check.
+    """
+    t0 = time.perf_counter()
+    rate = check_positive("rate_hz", rate_hz, "Hz")
+    dt = 1.0 / rate
+    if continuous is None:
+        continuous = plan_time_optimal(problem)
+    system = ModalResponse(problem.model, problem.include_position)
+    x0 = problem.shifted_initial()
+    um = problem.u_max
+    T = continuous.duration
+    if T == 0.0:
+        states = simulate_samples(problem.model, problem.x0, np.empty(0), dt)
+        return SampledProfile(problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, continuous, time.perf_counter() - t0)
+    if T / dt > 5e6:
+        raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
+    K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
+    # signs of the continuous optimum at the sample midpoints, aligned at the end
+    scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
+    nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
+    if not np.any(nu):
+        nu = None
+    proved_infeasible_below = K_lo  # every K < K_lo is infeasible (continuous bound)
+    K = K_lo
+    while K <= K_lo + MAX_EXTRA_SAMPLES:
+        G = _sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+        w = -system.expm_x(K * dt, x0) / scale
+        S = G @ nu if nu is not None else np.ones(K)
+        signs = np.where(S >= 0.0, 1.0, -1.0)
+        width = 4
+        result = None
+        while True:
+            free = _window_mask(S, width) if width < K else np.ones(K, dtype=bool)
+            sol = _solve_lp(G, w, signs, free)
+            if sol is not None:
+                u, t_star, nu_lp = sol
+                bound = _dual_bound(G, w, nu_lp)
+                exact_window = bound >= t_star * (1.0 - 1e-9)
+                if exact_window or free.all():
+                    result = (u, t_star, bound, nu_lp)
+                    break
+            if free.all():
+                break
+            width *= 4
+        if result is None:
+            raise SolverError(f"sampled planner: linear program failed at {K} samples")
+        u, t_star, bound, nu_lp = result
+        if t_star <= um * (1.0 + BOUND_RTOL):
+            u_exact = _correct(G, w, u * (um / max(t_star, um)) if t_star > um else u, um)
+            if u_exact is not None:
+                cmds = u_exact[::-1].copy()  # m = samples to go -> forward order
+                return _finish(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
+        if bound > um * (1.0 + BOUND_RTOL):
+            proved_infeasible_below = K + 1
+        nu = nu_lp
+        K += 1
+    raise SolverError(f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum")
+
+
+def _finish(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:
+    states = simulate_samples(problem.model, problem.x0, cmds, dt)
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
+    dev = states[-1] - target
+    if problem.target is None:
+        dev = dev[1:]
+        states_c = states[:, 1:]
+    else:
+        states_c = states - target
+    scale = np.max(np.abs(states_c), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    err = float(np.max(np.abs(dev)))
+    rel = float(np.max(np.abs(dev) / scale))
+    if not rel <= FINAL_STATE_RTOL or np.max(np.abs(cmds)) > problem.u_max:
+        raise SolverError(
+            f"sampled planner missed the target: relative final-state error {rel:.3e}; nothing is returned"
+        )
+    return SampledProfile(
+        problem=problem,
+        commands=cmds,
+        dt=dt,
+        states=states,
+        final_state_error=err,
+        final_state_error_relative=rel,
+        minimal=minimal,
+        lower_bound_samples=lower,
+        continuous=continuous,
+        solve_time_s=time.perf_counter() - t0,
+    )
