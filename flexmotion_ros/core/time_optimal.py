@@ -387,6 +387,46 @@ def _solve(sh: _Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, floa
     return nuh, T, e, r
 
 
+@dataclass
+class BangBangSolution:
+    """Raw solver output for a linear system in time-to-go form.
+
+    Attributes
+    ----------
+    nu : ndarray
+        Dual direction ``-lambda(T)`` (any positive scale).
+    duration : float
+        Optimal time ``T`` (s).
+    switch_times : ndarray
+        Forward switching times (s).
+    levels : ndarray
+        Input on each interval (``+-u_max``).
+    """
+
+    nu: np.ndarray
+    duration: float
+    switch_times: np.ndarray
+    levels: np.ndarray
+
+
+def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: float) -> BangBangSolution:
+    """Time-optimal bang-bang input bringing ``x0`` to the origin, for any system object.
+
+    ``system`` must offer what :class:`ModalResponse` offers (``n``, ``A()``,
+    ``B()``, ``expm_B``, ``input_integral``, ``expm_x``, ``A_x``,
+    ``switching(nu, tau, order=k)``, ``switching_magnitude``,
+    ``switching_derivative_bound`` and an array ``wd`` of its oscillation
+    frequencies, used for the grid).  ``T_low`` must be a proved lower bound
+    (0 if none); ``T_init`` a first guess.  The result is not yet checked:
+    simulate it and certify it (:func:`~flexmotion_ros.core.certificate.certify`).
+    """
+    x0 = np.asarray(x0, dtype=float)
+    sh = _Shooting(system, x0, u_max, max(T_init, 1e-300))
+    nuh, T, e, _ = _solve(sh, T_low, T_init)
+    switch_times = np.sort(T - e.roots)
+    return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * e.signs[::-1])
+
+
 def rigid_time(model: ModalModel, u_max: float, x0: np.ndarray, include_position: bool) -> float:
     """Time-optimal move of the rigid body alone (s): a lower bound for the full model.
 
