@@ -20,8 +20,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--goal", type=float, help="target position (m or rad); the move starts at rest at 0")
     p.add_argument("--initial-velocity", type=float, dest="initial_velocity", help="initial rigid-body velocity")
     p.add_argument("--rate", type=float, help="also plan the exact zero-order-hold sequence at this rate (Hz)")
+    p.add_argument("--method", help="profile type (overrides the file's 'method')")
+    p.add_argument("--robust-order", type=int, dest="robust_order", help="derivative order for robust methods")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
+
+
+def config_from_args(args: argparse.Namespace):
+    """The file's configuration with ``--method`` / ``--robust-order`` applied."""
+    config = load_config(args.config)
+    if getattr(args, "method", None):
+        config = config.with_changes(method=args.method)
+    if getattr(args, "robust_order", None) is not None:
+        config = config.with_changes(options={**config.options, "robust_order": args.robust_order})
+    return config
 
 
 def problem_from_args(config, goal: float | None, initial_velocity: float | None):
@@ -44,7 +56,7 @@ def problem_from_args(config, goal: float | None, initial_velocity: float | None
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_config(args.config)
+    config = config_from_args(args)
     problem = problem_from_args(config, args.goal, args.initial_velocity)
     rate = args.rate
     result = plan_move(config, problem, rate_hz=rate)

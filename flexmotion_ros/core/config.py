@@ -85,6 +85,9 @@ class PlannerConfig:
         if rate > 1e6:
             raise ConfigError("rate_hz", f"must be in (0, 1e6] Hz, got {rate}")
         object.__setattr__(self, "rate_hz", rate)
+        from .planning import load_methods  # methods register themselves on import
+
+        load_methods()
         if self.method not in METHODS:
             raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {self.method!r}")
         lo, hi = float(self.position_min), float(self.position_max)

@@ -87,7 +87,8 @@ def register_method(name: str, description: str, planner: Planner) -> None:
     METHODS[name] = description
 
 
-def _load_methods() -> None:
+def load_methods() -> None:
+    """Import every module in :data:`METHOD_MODULES` (each registers its methods)."""
     for module in METHOD_MODULES:
         importlib.import_module(module)
 
@@ -102,7 +103,7 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     SolverError
         No profile passed its own final-state check.
     """
-    _load_methods()
+    load_methods()
     planner = _PLANNERS.get(config.method)
     if planner is None:
         raise FlexmotionError("method", f"must be one of {sorted(_PLANNERS)}, got {config.method!r}")
