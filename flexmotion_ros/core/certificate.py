@@ -123,6 +123,11 @@ def certify(
 
     # --- 2. the sign changes of S are exactly the switches (proved) -----------
     grid = sample_grid(system, T, density=2.0)
+    if tau_sw.size and grid.size > 2:  # keep every switch well inside a cell
+        h = grid[1] - grid[0]
+        near = np.abs(grid[:, None] - tau_sw[None, :]).min(axis=1) < 0.25 * h
+        near[[0, -1]] = False
+        grid = grid[~near]
     iso = isolate_roots(system, nu, T, grid)
     unproved = iso.unproved
     tol = SWITCH_TIME_RTOL * T

@@ -28,7 +28,7 @@ from typing import Any, Mapping
 
 import yaml
 
-from .errors import FlexmotionError, ModelError
+from .errors import FlexmotionError
 from .model import ModalModel, check_positive
 
 #: Planning methods known to the core (other modules register more).

@@ -202,40 +202,70 @@ class ModalResponse:
         return out
 
     # ---------------------------------------------------- switching function
+    def _trig_basis(self, tau: np.ndarray) -> np.ndarray:
+        """``[e^{-sig tau} sin(wd tau), e^{-sig tau} cos(wd tau)]`` per mode, shape ``(len, 2N)``.
+
+        The last large array is cached by identity: the planners evaluate the
+        switching function on one grid many times while ``T`` is fixed.
+        """
+        if tau is self._basis_tau:
+            return self._basis_val
+        E, C, Sn = self._mode_trig(tau)
+        val = np.concatenate([E * Sn, E * C], axis=1)
+        if tau.size >= 32:
+            self._basis_tau, self._basis_val = tau, val
+        return val
+
+    _basis_tau: np.ndarray | None = None
+    _basis_val: np.ndarray | None = None
+
     def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False, order: int | None = None):
         """``S(tau) = nu^T e^{A tau} B`` and its derivatives in ``tau``.
 
         ``derivative=True`` returns ``(S, S')``; ``order=k`` returns
-        ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one pass over
-        the modes.
+        ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one
+        matrix product over the modes for all orders.
         """
         k = 0 if order is None else order
         if derivative and order is None:
             k = 1
-        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        tau = tau if isinstance(tau, np.ndarray) and tau.ndim == 1 else np.atleast_1d(np.asarray(tau, dtype=float))
         nu = np.asarray(nu, dtype=float)
         c = self.c
-        ect = np.exp(c * tau) if c != 0.0 else np.ones_like(tau)
         nv = nu[self.r - 1]
+        if c != 0.0:
+            ect = np.exp(c * tau)
+            lin = tau * _phi1(c * tau)
+        else:
+            ect = None
+            lin = tau
         if self.include_position:
             np_ = nu[0]
-            lin = tau * _phi1(c * tau) if c != 0.0 else tau
-            out = [self.b0 * (np_ * lin + nv * ect)]
-            d1 = self.b0 * ect * (np_ + nv * c)
+            S0 = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
+            d1c = self.b0 * (np_ + nv * c)
         else:
-            out = [self.b0 * nv * ect]
-            d1 = self.b0 * c * nv * ect
-        for j in range(1, k + 1):  # rigid part: S^(j) = c^(j-1) S'
-            out.append(d1 * c ** (j - 1))
+            S0 = self.b0 * nv * (ect if ect is not None else 1.0) * np.ones_like(tau)
+            d1c = self.b0 * c * nv
         if self.w.size:
-            E, C, Sn = self._mode_trig(tau)
-            ES, EC = E * Sn, E * C
             # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig)
             a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
             bb = nu[self.r + 1 :: 2] * self.bm
+            coef = np.empty((2 * self.w.size, k + 1))
             for j in range(k + 1):
-                out[j] = out[j] + ES @ a + EC @ bb
+                coef[: self.w.size, j] = a
+                coef[self.w.size :, j] = bb
                 a, bb = -(a * self.sig + bb * self.wd), a * self.wd - bb * self.sig
+            modal = self._trig_basis(tau) @ coef
+        else:
+            modal = None
+        out = []
+        for j in range(k + 1):
+            if j == 0:
+                col = S0
+            else:  # rigid part: S^(j) = c^(j-1) S'
+                col = d1c * c ** (j - 1) * (ect if ect is not None else 1.0)
+                col = col if isinstance(col, np.ndarray) else np.full(tau.shape, col)
+            out.append(col + modal[:, j] if modal is not None else col)
         return out[0] if k == 0 else tuple(out)
 
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:

@@ -48,7 +48,9 @@ from .switching import find_roots, sample_grid
 #: Accept a profile whose relative final-state error is below this.
 FINAL_STATE_RTOL = 1e-9
 #: The Newton polish has converged when the scaled final state is below this.
-POLISH_TOL = 1e-13
+POLISH_TOL = 1e-12
+#: Switch-structure corrections tried before the fallback.
+MAX_STRUCTURE_UPDATES = 5
 
 
 @dataclass
@@ -221,8 +223,8 @@ def _inner_smooth(sh: _Shooting, T: float, nuh: np.ndarray | None, eps_rel: floa
         nuh = nuh / float(nuh @ w)
     Z = _null_basis(w)
     S = Gm @ nuh
-    # near the optimum h = u_max int |S| = 1, so |S| ~ 1/(u_max T): a fixed scale per T
-    eps = eps_rel / (um * T)
+    # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve)
+    eps = eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
 
     def value(S):
         return um * float(wq @ (np.sqrt(S * S + eps * eps) - eps))
@@ -260,7 +262,14 @@ def _inner_smooth(sh: _Shooting, T: float, nuh: np.ndarray | None, eps_rel: floa
 
 
 def _outer(inner, T_low: float, T: float, nuh, tol: float, max_outer: int = 100):
-    """Safeguarded Newton on ``m(T) = 1`` (``m`` non-decreasing).  ``inner(T, nuh) -> (nuh, m, dm)``."""
+    """Safeguarded Newton on ``log m(T) = 0`` in ``log T`` (``m`` non-decreasing).
+
+    ``inner(T, nuh) -> (nuh, m, dm/dT)``.  ``m`` behaves like a power of ``T``
+    (for short moves a high one: the reachable set of an integrator chain
+    grows like ``T^k``), so Newton in logarithms converges where Newton on
+    ``m - 1`` would jump far; steps are capped at a factor 4 and kept inside
+    the bracket.
+    """
     lo, hi = T_low, math.inf
     for _ in range(max_outer):
         nuh, m, dm = inner(T, nuh)
@@ -270,9 +279,13 @@ def _outer(inner, T_low: float, T: float, nuh, tol: float, max_outer: int = 100)
             lo = max(lo, T)
         else:
             hi = min(hi, T)
-        Tn = T + (1.0 - m) / dm if dm > 0.0 else math.nan
+        if m > 0.0 and dm > 0.0:
+            elasticity = T * dm / m  # d log m / d log T
+            Tn = T * math.exp(max(-math.log(4.0), min(math.log(4.0), -math.log(m) / elasticity)))
+        else:
+            Tn = math.nan
         if not (lo < Tn < hi):
-            Tn = 2.0 * T if math.isinf(hi) else 0.5 * (lo + hi)
+            Tn = 2.0 * T if math.isinf(hi) else (0.5 * (lo + hi) if lo > 0.0 else 0.5 * hi)
         if abs(Tn - T) <= 1e-15 * T:
             break
         T = Tn
@@ -318,7 +331,7 @@ def _refine_switches(sh: _Shooting, roots: np.ndarray, sign0: float, nuh: np.nda
         r, g, eAx = residual(tau, nuh, T)
     rn = float(np.max(np.abs(r)))
     for _ in range(max_iter):
-        if rn <= 4.0 * np.finfo(float).eps:
+        if rn <= 16.0 * np.finfo(float).eps:
             break
         J = np.zeros((n + L + 1, L + n + 1))
         J[:n, :L] = (g * jump[:, None]).T  # dF/dtau_j = jump_j e^{A tau_j} B / s
@@ -332,8 +345,10 @@ def _refine_switches(sh: _Shooting, roots: np.ndarray, sign0: float, nuh: np.nda
             step = np.linalg.solve(J, -r)
         except np.linalg.LinAlgError:
             step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        if np.max(np.abs(np.append(step[:L], step[-1]))) <= 4.0 * np.finfo(float).eps * T:
+            break  # converged: the step is below rounding of the times
         t = 1.0
-        for _ in range(12):
+        for _ in range(12 if rn > POLISH_TOL else 3):
             tau_c = tau + t * step[:L]
             T_c = T + t * step[-1]
             nu_c = nuh + t * step[L : L + n]
@@ -353,38 +368,71 @@ def _refine_switches(sh: _Shooting, roots: np.ndarray, sign0: float, nuh: np.nda
     return rn <= POLISH_TOL, tau, nuh, T, rn
 
 
-def _solve(sh: _Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float, _Eval, float]:
+def _structure_newton(sh: _Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0):
+    """Switch-time Newton from the switch structure of ``nuh`` at ``T``, with structure updates.
+
+    ``roots``/``sign0``: the structure if already known for ``nuh`` at ``T``.
+    Returns ``(nuh, T, roots, signs, residual)`` of a converged extremal (its
+    switching function changes sign exactly at its switches), or None.
+    """
+    if roots is None:
+        roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, sample_grid(sh.sys, T))
+    nuh_r, T_r = nuh, T
+    for _ in range(MAX_STRUCTURE_UPDATES):
+        ok, roots_r, nuh_r, T_r, r = _refine_switches(sh, roots, sign0, nuh_r, T_r)
+        if not ok:
+            return None
+        # an extremal switches exactly where S changes sign; if S changes sign
+        # elsewhere too, the structure was wrong: adopt S's zeros and refine again
+        iso_roots, iso_sign0 = find_roots(sh.sys, nuh_r / sh.s, T_r, sample_grid(sh.sys, T_r))
+        if (
+            iso_roots.size == roots_r.size
+            and iso_sign0 == sign0
+            and np.allclose(iso_roots, roots_r, rtol=0.0, atol=1e-9 * T_r)
+        ):
+            signs = sign0 * (1.0 - 2.0 * (np.arange(roots_r.size + 1) % 2))
+            return nuh_r, T_r, roots_r, signs, r
+        roots, sign0 = iso_roots, iso_sign0
+    return None
+
+
+def _solve(sh: _Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
     """Optimal time and co-state direction.  ``T_low`` is a proved lower bound (may be 0).
 
-    1. A smoothed, discretised version of the convex problem (fast, robust)
-       gives the switch structure and a close ``T``.
-    2. Newton on switch times, co-state and ``T`` converges quadratically.
-    3. If that fails, the exact convex inner problem (trust region) drives a
-       safeguarded Newton iteration on ``T`` to full accuracy, then a joint
-       Newton polish.
+    1. A smoothed, discretised version of the convex inner problem at the
+       first guess, then the exact one (trust region), give a co-state
+       direction and so a switch structure (any number of switches).
+    2. Newton on switch times, co-state and ``T`` together converges
+       quadratically from that structure; wrong structures are corrected from
+       the zeros of the switching function (:func:`_structure_newton`).
+    3. If that fails, the exact inner problem drives a safeguarded Newton
+       iteration on ``log m(T) = 0`` until ``m`` is within 1e-3 of 1 and step 2
+       is tried again; as a last resort the nested iteration runs to full
+       accuracy and a joint Newton polish on ``(nu, T)`` finishes.
     The caller certifies whatever comes out.
     """
     T = max(T_init, T_low, 1e-300)
-    nuh, T = _outer(lambda T, v: _inner_smooth(sh, T, v, 0.01), T_low, T, None, tol=1e-7)
-    nuh = _rescale(sh, nuh, T)
-    roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, sample_grid(sh.sys, T))
-    ok, roots, nuh_r, T_r, r = _refine_switches(sh, roots, sign0, nuh, T)
-    if ok:
-        e = sh.evaluate(nuh_r, T_r, jac=False)
-        if e.roots.size == roots.size and float(np.max(np.abs(e.F))) <= POLISH_TOL:
-            return nuh_r, T_r, e, float(np.max(np.abs(e.F)))
+    nuh, _, _ = _inner_smooth(sh, T, None, 0.05)
 
     def exact(T, v, rtol=1e-9):
         v, m, dm, _ = _inner(sh, T, v, rtol=rtol)
         return v, m, dm
 
-    for tol, rtol in ((1e-3, 1e-9), (1e-11, 1e-15)):
-        nuh, T = _outer(lambda T, v: exact(T, v, rtol), T_low, T, nuh, tol=tol)
-        nuh = _rescale(sh, nuh, T)
-        nuh, T, e, r = _polish(sh, nuh, T)
-        if r <= POLISH_TOL:
-            break
-    return nuh, T, e, r
+    # the switch structure at the first guess is often already right: try the
+    # switch-time Newton from there, then again after the outer iteration
+    nuh, _, _, e = _inner(sh, T, nuh, rtol=1e-9)
+    found = _structure_newton(sh, nuh, T, e.roots, float(e.signs[0]))
+    if found is not None:
+        return found
+    nuh, T = _outer(exact, T_low, T, nuh, tol=1e-3)
+    nuh = _rescale(sh, nuh, T)
+    found = _structure_newton(sh, nuh, T)
+    if found is not None:
+        return found
+    nuh, T = _outer(lambda T, v: exact(T, v, 1e-15), T_low, T, nuh, tol=1e-11)
+    nuh = _rescale(sh, nuh, T)
+    nuh, T, e, r = _polish(sh, nuh, T)
+    return nuh, T, e.roots, e.signs, r
 
 
 @dataclass
@@ -422,9 +470,9 @@ def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: 
     """
     x0 = np.asarray(x0, dtype=float)
     sh = _Shooting(system, x0, u_max, max(T_init, 1e-300))
-    nuh, T, e, _ = _solve(sh, T_low, T_init)
-    switch_times = np.sort(T - e.roots)
-    return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * e.signs[::-1])
+    nuh, T, roots, signs, _ = _solve(sh, T_low, T_init)
+    switch_times = np.sort(T - roots)
+    return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
 
 
 def rigid_time(model: ModalModel, u_max: float, x0: np.ndarray, include_position: bool) -> float:
@@ -448,12 +496,21 @@ def rigid_time(model: ModalModel, u_max: float, x0: np.ndarray, include_position
         if X > -V * abs(V) / 2.0:
             return V + 2.0 * math.sqrt(X + V * V / 2.0)
         return -V + 2.0 * math.sqrt(-X + V * V / 2.0)
+    # viscous rigid body: one switch at most (real eigenvalues); Newton on the
+    # switch time and T from the frictionless solution, else the general solver
     rigid = model.with_changes(omega=(), zeta=(), b=())
-    sh = _Shooting(ModalResponse(rigid, True), np.array([p, v]) * np.sign(model.b0), u_max, 1.0)
+    x = np.array([p, v]) * np.sign(model.b0)
     guess = rigid_time(rigid.with_changes(c=0.0), u_max, np.array([p, v]), True)
-    sh.set_scale(guess)
-    _, T, _, _ = _solve(sh, 0.0, guess)
-    return T
+    sh = _Shooting(ModalResponse(rigid, True), x, u_max, guess)
+    X, V = p / a, v / a
+    first = -1.0 if X > -V * abs(V) / 2.0 else 1.0  # forward level before the switch (c = 0)
+    t_sw = 0.5 * (guess + first * V)  # c = 0 switch time: v + first*a*t_sw hits the curve
+    tau0 = np.array([min(max(guess - t_sw, 1e-3 * guess), 0.999 * guess)])
+    nuh = np.ones(2)
+    ok, _, _, T, _ = _refine_switches(sh, tau0, -first * np.sign(model.b0), nuh, guess)
+    if ok:
+        return T
+    return _solve(sh, 0.0, guess)[1]
 
 
 def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
@@ -483,9 +540,8 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
     # a first guess: the rigid time plus a quarter period of the slowest mode
     T_init = T_low + (0.5 * math.pi / min(model.omega) if model.omega else 0.0)
     sh = _Shooting(system, x0, um, T_init)
-    nuh, T, e, _ = _solve(sh, T_low * (1.0 - 1e-12), T_init)
-    nu = nuh / sh.s
-    return _assemble(problem, system, nu, T, e.roots, e.signs, t0, sh.evaluations)
+    nuh, T, roots, signs, _ = _solve(sh, T_low * (1.0 - 1e-12), T_init)
+    return _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations)
 
 
 def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations) -> BangBangProfile:
