@@ -192,6 +192,13 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
                 break
             width *= 4
         if result is None:
+            # no sequence at all reaches the target in K samples (fewer samples
+            # than states): the least-squares residual proves it
+            u_ls, *_ = np.linalg.lstsq(G.T, w, rcond=None)
+            if np.max(np.abs(G.T @ u_ls - w)) > 1e-9 * max(float(np.max(np.abs(w))), 1e-300):
+                proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
+                K += 1
+                continue
             raise SolverError(f"sampled planner: linear program failed at {K} samples")
         u, t_star, bound, nu_lp = result
         if t_star <= um * (1.0 + BOUND_RTOL):
@@ -200,7 +207,7 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
                 cmds = u_exact[::-1].copy()  # m = samples to go -> forward order
                 return _finish(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
         if bound > um * (1.0 + BOUND_RTOL):
-            proved_infeasible_below = K + 1
+            proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
         K += 1
     raise SolverError(f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum")
