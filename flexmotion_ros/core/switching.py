@@ -244,3 +244,20 @@ def find_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None)
     """
     iso = isolate_roots(system, nu, T, grid, order=4)
     return iso.roots, iso.sign0
+
+
+def root_tolerance(system, nu: np.ndarray, T: float, roots: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
+    """How precisely each zero of ``S`` is determined (s).
+
+    ``max(rtol T, noise / |S'(root)|)`` with ``noise`` a generous bound on the
+    rounding error of ``S`` (terms that cancel); in a tight cluster of zeros
+    ``|S'|`` is small and a zero's position is only known to that precision.
+    """
+    if roots.size == 0:
+        return np.empty(0)
+    mag0, _ = system.switching_magnitude(nu, T)
+    _, dS = system.switching(nu, roots, derivative=True)
+    noise = 1e3 * np.finfo(float).eps * mag0
+    with np.errstate(divide="ignore"):
+        return np.maximum(rtol * T, noise / np.abs(dS))
+

@@ -42,7 +42,7 @@ from .modal_response import ModalResponse
 from .model import check_positive
 from .profile import BangBangProfile, SampledProfile
 from .simulation import simulate_samples
-from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
+from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal, state_scale
 
 #: Relative slack on the bound when accepting an LP solution before correction.
 BOUND_RTOL = 1e-12
@@ -219,11 +219,8 @@ def _finish(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile
     dev = states[-1] - target
     if problem.target is None:
         dev = dev[1:]
-        states_c = states[:, 1:]
-    else:
-        states_c = states - target
-    scale = np.max(np.abs(states_c), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
+    system = ModalResponse(problem.model, problem.include_position)
+    scale = state_scale(system, problem.shifted_initial(), problem.u_max, max(cmds.size * dt, dt))
     err = float(np.max(np.abs(dev)))
     rel = float(np.max(np.abs(dev) / scale))
     if not rel <= FINAL_STATE_RTOL or np.max(np.abs(cmds)) > problem.u_max:

@@ -1,0 +1,122 @@
+"""Newton on switch times for a fixed switch structure, with structure correction.
+
+Given a guess of the switch structure (number of switches, first level),
+the final-state conditions are smooth functions of the switch times and the
+duration, and Pontryagin's condition says the switching function vanishes
+at each switch: one square system in ``(tau_1..tau_L, nu, T)`` for any ``L``,
+solved by Newton's method with closed-form derivatives.  If the converged
+co-state's switching function changes sign elsewhere too, the structure was
+wrong; its zeros become the new structure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .certificate import GAP_RTOL
+from .reachable_set import POLISH_TOL, Shooting
+from .switching import find_roots, root_tolerance, sample_grid
+
+#: Switch-structure corrections tried before giving up.
+MAX_STRUCTURE_UPDATES = 5
+
+
+def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
+    """Newton on switch times, co-state and duration together, for a fixed switch structure.
+
+    Unknowns ``(tau_1..tau_L, nu, T)``; equations: final state zero (n),
+    switching function zero at each switch (L), one normalisation of ``nu``.
+    Square for any ``L``; all derivatives in closed form, no root finding.
+
+    Returns ``(ok, roots, nuh, T, residual)``; ``ok`` is False if the
+    structure broke (switches crossed or left ``(0, T)``) or Newton stalled.
+    """
+    sys, s, um = sh.sys, sh.s, sh.u_max
+    L, n = roots.size, s.size
+    signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+    jump = 2.0 * um * signs[:-1]  # (s_{j-1} - s_j) u_max
+    nuh = nuh / np.linalg.norm(nuh)
+    anchor = nuh.copy()
+
+    def residual(tau, nuh, T):
+        G = sys.input_integral(np.append(tau, T))
+        eAx = sys.expm_x(T, sh.x0)
+        F = (eAx + um * signs[-1] * G[-1] + jump @ G[:-1]) / s
+        g = sys.expm_B(tau) / s if L else np.zeros((0, n))
+        S = g @ nuh
+        return np.concatenate([F, S * gscale, [anchor @ nuh - 1.0]]), g, eAx
+
+    gscale = 1.0
+    tau = roots.copy()
+    r, g, eAx = residual(tau, nuh, T)
+    if L:
+        gscale = 1.0 / max(float(np.max(np.linalg.norm(g, axis=1))), 1e-300)
+        r, g, eAx = residual(tau, nuh, T)
+    rn = float(np.max(np.abs(r)))
+    for _ in range(max_iter):
+        if rn <= 16.0 * np.finfo(float).eps:
+            break
+        J = np.zeros((n + L + 1, L + n + 1))
+        J[:n, :L] = (g * jump[:, None]).T  # dF/dtau_j = jump_j e^{A tau_j} B / s
+        J[:n, -1] = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
+        if L:
+            _, dS = sys.switching(nuh / s, tau, derivative=True)
+            J[n : n + L, :L] = np.diag(dS * gscale)
+            J[n : n + L, L : L + n] = g * gscale
+        J[-1, L : L + n] = anchor
+        try:
+            step = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:
+            step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        if np.max(np.abs(np.append(step[:L], step[-1]))) <= 4.0 * np.finfo(float).eps * T:
+            break  # converged: the step is below rounding of the times
+        t = 1.0
+        for _ in range(12):
+            tau_c = tau + t * step[:L]
+            T_c = T + t * step[-1]
+            nu_c = nuh + t * step[L : L + n]
+            if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
+                r_c, g_c, eAx_c = residual(tau_c, nu_c, T_c)
+                rn_c = float(np.max(np.abs(r_c)))
+                if rn_c < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        tau, nuh, T, r, g, eAx, rn = tau_c, nu_c, T_c, r_c, g_c, eAx_c, rn_c
+    if L:  # nu and -nu both vanish at the switches: take the one whose signs match
+        first = 0.5 * tau[0]
+        if np.sign(sys.switching(nuh / s, np.array([first]))[0]) != sign0:
+            nuh = -nuh
+    return rn <= POLISH_TOL, tau, nuh, T, rn
+
+
+def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0):
+    """Switch-time Newton from the switch structure of ``nuh`` at ``T``, with structure updates.
+
+    ``roots``/``sign0``: the structure if already known for ``nuh`` at ``T``.
+    ``T_low``: a proved lower bound on the optimal time.
+    Returns ``(nuh, T, roots, signs, residual)`` of a converged extremal (its
+    switching function changes sign exactly at its switches), or None.
+    """
+    if roots is None:
+        roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, sample_grid(sh.sys, T))
+    nuh_r, T_r = nuh, T
+    for _ in range(MAX_STRUCTURE_UPDATES):
+        ok, roots_r, nuh_r, T_r, r = refine_switches(sh, roots, sign0, nuh_r, T_r)
+        if not ok:
+            return None
+        # an extremal switches exactly where S changes sign; if S changes sign
+        # elsewhere too, the structure was wrong: adopt S's zeros and refine again
+        iso_roots, iso_sign0 = find_roots(sh.sys, nuh_r / sh.s, T_r, sample_grid(sh.sys, T_r))
+        if (
+            iso_roots.size == roots_r.size
+            and iso_sign0 == sign0
+            and np.all(np.abs(iso_roots - roots_r) <= root_tolerance(sh.sys, nuh_r / sh.s, T_r, roots_r))
+        ) or T_r - T_low <= GAP_RTOL * T_r:
+            # (or within rounding of a proved lower bound: optimal whatever the
+            # sign test says, e.g. in a cluster of switches below rounding)
+            signs = sign0 * (1.0 - 2.0 * (np.arange(roots_r.size + 1) % 2))
+            return nuh_r, T_r, roots_r, signs, r
+        roots, sign0 = iso_roots, iso_sign0
+    return None

@@ -1,0 +1,11 @@
+"""Test-wide settings.
+
+Single-threaded BLAS: our matrices are tiny (states of a modal model), and
+OpenBLAS threads on a shared 2-core machine make a 9x9 expm 100x slower.
+Set before numpy is imported anywhere.
+"""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
