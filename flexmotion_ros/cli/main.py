@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from ..core.errors import FlexmotionError, SolverError
@@ -19,6 +20,9 @@ from ..core.errors import FlexmotionError, SolverError
 COMMAND_MODULES = [
     "flexmotion_ros.cli.plan_cmd",
     "flexmotion_ros.cli.model_cmd",
+    "flexmotion_ros.cli.design_cmd",
+    "flexmotion_ros.cli.shaper_cmd",
+    "flexmotion_ros.cli.compare_cmd",
 ]
 
 
@@ -45,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     except (FlexmotionError, SolverError) as exc:
         sys.stderr.write(f"flexmotion: error: {exc}\n")
         return 2
+    except BrokenPipeError:  # e.g. piped into head: not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 def entry() -> None:

@@ -7,9 +7,10 @@ import json
 import math
 
 import numpy as np
+import yaml
 
 from ..core.boundary import motion_to_rest, rest_to_rest, state_to_rest
-from ..core.config import load_config
+from ..core.config import ConfigError, load_config
 from ..core.errors import GoalError
 from ..core.planning import plan_move
 
@@ -22,6 +23,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, help="also plan the exact zero-order-hold sequence at this rate (Hz)")
     p.add_argument("--method", help="profile type (overrides the file's 'method')")
     p.add_argument("--robust-order", type=int, dest="robust_order", help="derivative order for robust methods")
+    p.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="method option as a ROS parameter (repeatable), e.g. coulomb_force=0.2",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -33,6 +41,11 @@ def config_from_args(args: argparse.Namespace):
         config = config.with_changes(method=args.method)
     if getattr(args, "robust_order", None) is not None:
         config = config.with_changes(options={**config.options, "robust_order": args.robust_order})
+    for item in getattr(args, "option", None) or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise ConfigError("--option", f"expected NAME=VALUE, got {item!r}")
+        config = config.with_changes(options={**config.options, name.strip(): yaml.safe_load(value)})
     return config
 
 

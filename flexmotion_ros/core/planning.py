@@ -78,7 +78,10 @@ Planner = Callable[[PlannerConfig, MoveProblem, "float | None"], PlanResult]
 _PLANNERS: dict[str, Planner] = {}
 
 #: Modules that register methods when imported (the core's own first).
-METHOD_MODULES: list[str] = []
+METHOD_MODULES: list[str] = [
+    "flexmotion_ros.core.shaping_methods",
+    "flexmotion_ros.core.friction_methods",
+]
 
 
 def register_method(name: str, description: str, planner: Planner) -> None:

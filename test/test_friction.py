@@ -1,0 +1,385 @@
+"""Coulomb friction: exact piecewise simulation and time-optimal moves (seed eqs. 2.8-2.11).
+
+References are independent of the simulator under test: a closed-form
+event-by-event solution of the rigid body with friction, and event-located
+``scipy.integrate.solve_ivp`` runs with very tight tolerances (a cross-check
+of the matrix-exponential method, not the reference for the planners, which
+are checked with the exact simulator).
+"""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+
+from flexmotion_ros.core import (
+    ModalModel,
+    PiecewiseConstant,
+    config_from_parameters,
+    rest_to_rest,
+    simulate,
+    two_mass,
+)
+from flexmotion_ros.core.errors import FlexmotionError, SolverError
+from flexmotion_ros.core.friction import (
+    FrictionSystem,
+    contact_at_coordinate,
+    plan_friction_zoh,
+    plan_time_optimal_friction,
+    rigid_friction_time,
+    simulate_contact,
+    simulate_coulomb,
+)
+from flexmotion_ros.core.planning import plan_move
+from flexmotion_ros.core.time_optimal import plan_time_optimal
+
+WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
+
+
+# ------------------------------------------------------------ references
+def rigid_reference(b0: float, F: float, p: float, v: float, u: PiecewiseConstant) -> np.ndarray:
+    """Closed-form rigid body with Coulomb friction (c = 0), states at ``u.breaks``."""
+    out = [(p, v)]
+    a_f = abs(b0) * F
+    for k, level in enumerate(u.levels):
+        left = u.breaks[k + 1] - u.breaks[k]
+        while left > 0.0:
+            if v == 0.0:
+                if abs(level) <= F:
+                    break  # stuck for the rest of the piece
+                s = math.copysign(1.0, b0 * level)
+            else:
+                s = math.copysign(1.0, v)
+            acc = b0 * level - a_f * s
+            t_stop = -v / acc if acc * s < 0.0 and v != 0.0 else math.inf
+            h = min(left, t_stop)
+            p += v * h + 0.5 * acc * h * h
+            v = 0.0 if h == t_stop else v + acc * h
+            left -= h
+        out.append((p, v))
+    return np.array(out)
+
+
+def ivp_modal_friction(model: ModalModel, F: float, x0, u: PiecewiseConstant) -> np.ndarray:
+    """Event-located solve_ivp of the modal model with friction on the rigid body, states at breaks."""
+    A, B = model.A(), model.B()
+    af = abs(model.b0) * F
+    x = np.array(x0, float)
+    out = [x.copy()]
+    for k, level in enumerate(u.levels):
+        t, t_end = u.breaks[k], u.breaks[k + 1]
+        while t < t_end:
+            if x[1] == 0.0 and abs(level) <= F:  # stuck: rigid body held, modes free
+                def rhs(_, z, level=level):
+                    d = A @ z + B * level
+                    d[:2] = 0.0
+                    return d
+
+                sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=1e-12, atol=1e-14)
+                x = sol.y[:, -1]
+                t = t_end
+                continue
+            s = math.copysign(1.0, x[1]) if x[1] != 0.0 else math.copysign(1.0, model.b0 * level)
+
+            def rhs(_, z, level=level, s=s):
+                d = A @ z + B * level
+                d[1] -= af * s
+                return d
+
+            def stop(_, z, s=s):
+                return z[1] * s
+
+            stop.terminal = True
+            stop.direction = -1
+            sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=1e-12, atol=1e-14, events=stop)
+            x = sol.y[:, -1].copy()
+            if sol.status == 1:  # velocity reached zero
+                t = float(sol.t_events[0][0])
+                x = sol.y_events[0][0].copy()
+                x[1] = 0.0  # the next pass sticks or slides on, by |u| against F
+            else:
+                t = t_end
+        out.append(x.copy())
+    return np.array(out)
+
+
+def ivp_two_mass_friction(m1, m2, k, d, F, x0, u: PiecewiseConstant) -> np.ndarray:
+    """Physical two-mass system, friction on mass 1, stick-slip by events; states at breaks."""
+    x = np.array(x0, float)  # [x1, v1, x2, v2]
+    out = [x.copy()]
+
+    def applied(z, level):  # net force on mass 1 with v1 = 0
+        return level - k * (z[0] - z[2]) + d * z[3]
+
+    for j, level in enumerate(u.levels):
+        t, t_end = u.breaks[j], u.breaks[j + 1]
+        while t < t_end - 1e-15:
+            stuck = x[1] == 0.0 and abs(applied(x, level)) <= F
+            if stuck:
+                def rhs(_, z, level=level):
+                    return [0.0, 0.0, z[3], (k * (z[0] - z[2]) - d * z[3]) / m2]
+
+                def slip_p(_, z, level=level):
+                    return applied(z, level) - F
+
+                def slip_m(_, z, level=level):
+                    return applied(z, level) + F
+
+                slip_p.terminal = slip_m.terminal = True
+                sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=1e-12, atol=1e-14, events=[slip_p, slip_m])
+            else:
+                s = math.copysign(1.0, x[1]) if x[1] != 0.0 else math.copysign(1.0, applied(x, level))
+
+                def rhs(_, z, level=level, s=s):
+                    f = k * (z[0] - z[2]) + d * (z[1] - z[3])
+                    return [z[1], (level - f - F * s) / m1, z[3], f / m2]
+
+                def stop(_, z, s=s):
+                    return z[1] * s
+
+                stop.terminal = True
+                stop.direction = -1
+                sol = solve_ivp(rhs, (t, t_end), x, method="DOP853", rtol=1e-12, atol=1e-14, events=[stop])
+            if sol.status == 1:
+                idx = next(i for i, te in enumerate(sol.t_events) if te.size)
+                t = float(sol.t_events[idx][0])
+                x = sol.y_events[idx][0].copy()
+                if not stuck:
+                    x[1] = 0.0
+                else:  # breaks loose: nudge into sliding in the direction of the net force
+                    x[1] = 0.0
+                    x_next = x.copy()
+                    s = math.copysign(1.0, applied(x, level))
+                    x_next[1] = s * 1e-300
+                    x = x_next
+            else:
+                x = sol.y[:, -1].copy()
+                t = t_end
+        out.append(x.copy())
+    return np.array(out)
+
+
+def random_input(rng, n_pieces, T, u_max):
+    breaks = np.sort(np.concatenate([[0.0, T], rng.uniform(0.0, T, n_pieces - 1)]))
+    return PiecewiseConstant(breaks, rng.uniform(-u_max, u_max, n_pieces))
+
+
+# ------------------------------------------------------------ simulation
+@pytest.mark.parametrize("seed", range(6))
+def test_rigid_body_matches_closed_form(seed):
+    rng = np.random.default_rng(seed)
+    b0 = rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 3.0)
+    F = rng.uniform(0.1, 0.8)
+    u = random_input(rng, 12, 6.0, 1.0)
+    p0, v0 = rng.normal(), rng.normal()
+    model = ModalModel(b0=b0)
+    got = simulate_coulomb(model, [p0, v0], u, F)
+    ref = rigid_reference(b0, F, p0, v0, u)
+    assert np.max(np.abs(got - ref)) < 1e-12 * (1.0 + np.max(np.abs(ref)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_modal_model_matches_event_located_ivp(seed):
+    rng = np.random.default_rng(10 + seed)
+    model = ModalModel(
+        b0=rng.uniform(0.3, 1.5),
+        c=-rng.uniform(0.0, 0.5) if seed % 2 else 0.0,
+        omega=[rng.uniform(1.0, 3.0), rng.uniform(4.0, 8.0)],
+        zeta=[rng.uniform(0.0, 0.05), rng.uniform(0.0, 0.05)],
+        b=[rng.uniform(0.5, 1.5), -rng.uniform(0.5, 1.5)],
+    )
+    F = rng.uniform(0.2, 0.6)
+    u = random_input(rng, 10, 5.0, 1.0)
+    x0 = np.concatenate([[0.0, rng.normal()], rng.normal(size=4) * 0.1])
+    got = simulate_coulomb(model, x0, u, F)
+    ref = ivp_modal_friction(model, F, x0, u)
+    scale = 1.0 + np.max(np.abs(ref), axis=0)
+    assert np.max(np.abs(got - ref) / scale) < 1e-8
+
+
+def test_sticking_holds_the_rigid_body_and_leaves_the_modes_free():
+    F = 0.4
+    u = PiecewiseConstant([0.0, 1.5, 3.0, 4.0], [0.3, -0.4, 0.9])  # |u| <= F, then = F, then above
+    x0 = np.array([2.0, 0.0, 0.05, -0.1])
+    times = np.linspace(0.0, 4.0, 41)
+    got = simulate_coulomb(WB, x0, u, F, times)
+    free = simulate(WB, x0, u, times)  # frictionless: the modes are the same
+    stuck = times <= 3.0
+    assert np.all(got[stuck, 0] == 2.0) and np.all(got[stuck, 1] == 0.0)  # exactly at rest
+    assert np.max(np.abs(got[:, 2:] - free[:, 2:])) < 1e-13  # modes unaffected by rigid-body friction
+    assert got[-1, 1] > 0.0  # |u| > F: it slides ...
+    a = WB.b0 * (0.9 - F)  # ... with b0 (u - F) from t = 3
+    assert got[-1, 1] == pytest.approx(a * 1.0, rel=1e-12)
+    assert got[-1, 0] == pytest.approx(2.0 + 0.5 * a, rel=1e-12)
+
+
+def test_coasting_body_stops_at_the_predicted_instant_and_stays():
+    F, v0 = 0.25, 0.8
+    u = PiecewiseConstant([0.0, 10.0], [0.0])
+    run = FrictionSystem.for_model(WB, F).run([0.0, v0, 0.0, 0.0], u, [10.0])
+    t_stop = v0 / (WB.b0 * F)
+    kinds = [(k, t) for t, k, _ in run.events]
+    assert kinds[0][0] == "stick" and kinds[0][1] == pytest.approx(t_stop, rel=1e-14)
+    assert run.states[0][0] == pytest.approx(v0 * t_stop / 2.0, rel=1e-13)
+    assert run.states[0][1] == 0.0
+
+
+def test_closed_form_and_matrix_exponential_paths_agree():
+    rng = np.random.default_rng(3)
+    u = random_input(rng, 15, 6.0, 1.0)
+    x0 = [0.0, 0.3, 0.02, 0.0]
+    a = FrictionSystem.for_model(WB, 0.3, closed_form=True).run(x0, u).states
+    b = FrictionSystem.for_model(WB, 0.3).run(x0, u).states
+    assert np.max(np.abs(a - b)) < 1e-12
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_friction_inside_the_structure_sticks_with_constrained_modes(seed):
+    """Friction on mass 1 of a two-mass system: the stuck mass changes the modal dynamics."""
+    rng = np.random.default_rng(20 + seed)
+    m1, m2, k, d = 1.0, rng.uniform(0.5, 2.0), rng.uniform(0.5, 2.0), rng.uniform(0.0, 0.1)
+    built = two_mass(m1, m2, k, d)
+    F = rng.uniform(0.2, 0.5)
+    contact = contact_at_coordinate(built, 0, F)
+    # the actuator pushes mass 1: a force there has the input's modal effect
+    assert np.allclose(contact.g[1::2], built.model.B()[1::2], rtol=1e-12)
+    u = random_input(rng, 8, 8.0, 1.0)
+    Phi = built.modal_to_physical
+    x0_phys = np.array([0.0, 0.0, 0.0, 0.0])
+    run = simulate_contact(built.model.A(), built.model.B(), contact, np.zeros(4), u)
+    got = np.column_stack([run.states[:, [0, 2]] @ Phi.T, run.states[:, [1, 3]] @ Phi.T])[:, [0, 2, 1, 3]]
+    ref = ivp_two_mass_friction(m1, m2, k, d, F, x0_phys, u)
+    assert any(kind == "stick" for _, kind, _ in run.events) or any(kind == "reversal" for _, kind, _ in run.events)
+    assert np.max(np.abs(got - ref)) < 1e-7 * (1.0 + np.max(np.abs(ref)))
+
+
+def test_contact_validation():
+    with pytest.raises(FlexmotionError) as e:
+        simulate_coulomb(WB, np.zeros(4), PiecewiseConstant([0.0, 1.0], [1.0]), -0.1)
+    assert e.value.parameter == "coulomb_force"
+
+
+# ------------------------------------------------------------ planner
+@pytest.fixture(scope="module")
+def wb_friction():
+    return {F: plan_time_optimal_friction(rest_to_rest(WB, 1.0, 1.0), F) for F in (0.0, 0.1, 0.3)}
+
+
+def test_friction_move_rests_at_target_in_exact_simulation(wb_friction):
+    T_star = plan_time_optimal(rest_to_rest(WB, 1.0, 1.0)).duration
+    durations = []
+    for F, prof in wb_friction.items():
+        u = prof.input()
+        x = simulate_coulomb(WB, WB.rest_state(), u, F, [prof.duration, prof.duration + 5.0])
+        target = WB.rest_state(1.0)
+        assert np.max(np.abs(x[0] - target)) < 1e-12
+        assert np.max(np.abs(x[1] - target)) < 1e-12  # and stays there with u = 0
+        assert np.all(np.abs(prof.levels) == 1.0)
+        assert prof.certified, prof.certificate.message
+        assert prof.duration >= prof.lower_bound
+        durations.append(prof.duration)
+        # independent cross-check of the final state: event-located integration
+        ref = ivp_modal_friction(WB, F, WB.rest_state(), u)[-1]
+        assert np.max(np.abs(ref - target)) < 1e-7
+    assert durations[0] == pytest.approx(T_star, abs=1e-12)
+    assert durations[0] < durations[1] < durations[2]  # friction costs time here
+
+
+def test_wie_bernstein_move_reverses_and_the_costate_jumps(wb_friction):
+    prof = wb_friction[0.1]
+    assert prof.reversals.size == 2  # the centre of mass briefly moves back mid-move
+    assert 0.0 < prof.reversals[0] < prof.reversals[1] < prof.duration
+
+
+def test_rigid_body_friction_optimum_is_the_closed_form():
+    b0, F, gamma = 0.5, 0.3, 2.0
+    prof = plan_time_optimal_friction(rest_to_rest(ModalModel(b0=b0), 1.0, gamma), F)
+    a1, a2 = b0 * (1.0 - F), b0 * (1.0 + F)
+    T = math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+    assert prof.duration == pytest.approx(T, rel=1e-13)
+    assert prof.switch_times == pytest.approx([T * a2 / (a1 + a2)], rel=1e-13)
+    assert rigid_friction_time(ModalModel(b0=b0), 1.0, F, [0.0, 0.0], gamma) == pytest.approx(T, rel=1e-15)
+
+
+def test_structure_change_is_followed_on_the_three_mode_beam():
+    model = ModalModel(
+        b0=0.5,
+        omega=[21.647844005847876, 40.0, 52.262518595055056],
+        zeta=[0.010823922002923939, 0.02, 0.02613125929752753],
+        b=[0.707106781186547, 1.0, -0.7071067811865477],
+    )
+    problem = rest_to_rest(model, 10.0, 0.5)
+    prof = plan_time_optimal_friction(problem, 0.5)
+    assert prof.certified, prof.certificate.message
+    assert prof.switch_times.size == 9  # a new pair of switches near the end of the move
+    x = simulate_coulomb(model, model.rest_state(), prof.input(), 0.5, [prof.duration])[0]
+    assert np.max(np.abs(x - model.rest_state(0.5))) < 1e-12
+
+
+def test_sampled_friction_move_is_exact_and_bounded(wb_friction):
+    prof = wb_friction[0.3]
+    problem = prof.problem
+    sp = plan_friction_zoh(problem, 0.3, 100.0, prof)
+    assert np.max(np.abs(sp.commands)) <= 1.0
+    x = simulate_coulomb(WB, WB.rest_state(), sp.input(), 0.3, [sp.duration, sp.duration + 3.0])
+    assert np.max(np.abs(x - WB.rest_state(1.0))) < 1e-11
+    assert sp.samples >= sp.lower_bound_samples
+    assert sp.samples <= math.ceil(prof.duration * 100.0) + 5
+    assert np.allclose(sp.states[-1], x[0], atol=1e-12)
+
+
+def test_method_through_plan_move_and_parameter_errors():
+    base = {"model.b0": 0.5, "model.omega": [math.sqrt(2.0)], "model.zeta": [0.0], "model.b": [1.0]}
+    cfg = config_from_parameters({**base, "method": "time_optimal_friction", "coulomb_force": 0.2})
+    res = plan_move(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), rate_hz=50.0)
+    summary = res.summary()
+    assert summary["method"] == "time_optimal_friction" and summary["certified"]
+    assert summary["added_time_s"] > 0.0
+    json.dumps(summary)
+    for bad in (1.0, 1.5, -0.1, float("nan"), "x"):
+        cfg_bad = config_from_parameters({**base, "method": "time_optimal_friction", "coulomb_force": bad})
+        with pytest.raises(FlexmotionError) as e:
+            plan_move(cfg_bad, rest_to_rest(cfg.model, cfg.u_max, 1.0))
+        assert e.value.parameter == "coulomb_force" and "[0, u_max)" in str(e.value)
+    with pytest.raises(FlexmotionError) as e:
+        plan_move(config_from_parameters({**base, "method": "time_optimal_friction"}), rest_to_rest(cfg.model, 1.0, 1.0))
+    assert e.value.parameter == "coulomb_force"
+
+
+def test_cli_plans_the_example_config():
+    out = subprocess.run(
+        [sys.executable, "-m", "flexmotion_ros.cli.main", "plan", "--config", "config/friction_example.yaml", "--goal", "1.0", "--json"],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=__file__.rsplit("/test/", 1)[0],
+    )
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert data["method"] == "time_optimal_friction" and data["coulomb_force"] == 0.2
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    w=st.floats(0.5, 3.0),
+    zeta=st.floats(0.0, 0.1),
+    b=st.floats(0.3, 2.0),
+    gamma=st.floats(0.2, 3.0),
+    frac=st.floats(0.0, 0.6),
+)
+def test_never_returns_a_move_that_misses_the_target(w, zeta, b, gamma, frac):
+    model = ModalModel(b0=0.5, omega=[w], zeta=[zeta], b=[b])
+    try:
+        prof = plan_time_optimal_friction(rest_to_rest(model, 1.0, gamma), frac)
+    except SolverError:
+        return  # allowed: nothing is returned
+    x = simulate_coulomb(model, model.rest_state(), prof.input(), frac, [prof.duration, prof.duration + 2.0])
+    scale = 1.0 + gamma
+    assert np.max(np.abs(x - model.rest_state(gamma))) < 1e-9 * scale
+    assert prof.lower_bound is None or prof.duration >= prof.lower_bound * (1.0 - 1e-12)
