@@ -41,12 +41,8 @@ import numpy as np
 
 from flexmotion_ros.core.builders import two_mass
 from flexmotion_ros.core.config import PlannerConfig
-from flexmotion_ros.core.design import (
-    DesignObjective,
-    DesignParameter,
-    DesignProblem,
-    Task,
-)
+from flexmotion_ros.core.design_problem import DesignObjective, DesignProblem, Task
+from flexmotion_ros.core.design_space import DesignParameter
 
 
 def _cpu() -> float:

@@ -42,7 +42,8 @@ from flexmotion_ros.core import (
 )
 from flexmotion_ros.core.errors import SolverError
 from flexmotion_ros.core.fixed_time import plan_fixed_time, plan_fixed_time_zoh
-from flexmotion_ros.core.friction import plan_friction_zoh, plan_time_optimal_friction
+from flexmotion_ros.core.friction_time_optimal import plan_time_optimal_friction
+from flexmotion_ros.core.friction_zoh import plan_friction_zoh
 
 
 def timed(fn, *args):

@@ -38,15 +38,14 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.config import read_parameter_file
-from flexmotion_ros.core.design import (
-    DesignParameter,
+from flexmotion_ros.core.design import optimize_design, write_design
+from flexmotion_ros.core.design_problem import (
     DesignProblem,
     RobustnessRequirement,
     Task,
-    optimize_design,
     problem_from_parameters,
-    write_design,
 )
+from flexmotion_ros.core.design_space import DesignParameter
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
 
 WB = ModalModel(b0=0.5, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])

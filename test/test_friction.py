@@ -30,12 +30,14 @@ from flexmotion_ros.core.errors import FlexmotionError, SolverError
 from flexmotion_ros.core.friction import (
     FrictionSystem,
     contact_at_coordinate,
-    plan_friction_zoh,
-    plan_time_optimal_friction,
-    rigid_friction_time,
     simulate_contact,
     simulate_coulomb,
 )
+from flexmotion_ros.core.friction_time_optimal import (
+    plan_time_optimal_friction,
+    rigid_friction_time,
+)
+from flexmotion_ros.core.friction_zoh import plan_friction_zoh
 from flexmotion_ros.core.planning import plan_move
 from flexmotion_ros.core.time_optimal import plan_time_optimal
 

@@ -14,15 +14,13 @@ import math
 import sys
 
 from ..core.config import read_parameter_file
-from ..core.design import (
-    PARAMETER_RANGES,
-    DesignParameter,
+from ..core.design import optimize_design, write_design
+from ..core.design_problem import (
     RobustnessRequirement,
-    optimize_design,
     problem_from_parameters,
     rigid_bound,
-    write_design,
 )
+from ..core.design_space import PARAMETER_RANGES, DesignParameter
 from ..core.errors import FlexmotionError
 
 

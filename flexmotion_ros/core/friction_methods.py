@@ -16,7 +16,8 @@ from .boundary import MoveProblem
 from .config import PlannerConfig
 from .errors import FlexmotionError
 from .fixed_time import plan_fixed_time, plan_fixed_time_zoh
-from .friction import check_coulomb_force, plan_friction_zoh, plan_time_optimal_friction
+from .friction_time_optimal import check_coulomb_force, plan_time_optimal_friction
+from .friction_zoh import plan_friction_zoh
 from .planning import PlanResult, register_method
 
 

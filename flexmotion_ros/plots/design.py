@@ -8,7 +8,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..core.design import PARAMETER_RANGES, DesignResult, rigid_bound
+from ..core.design import DesignResult
+from ..core.design_problem import rigid_bound
+from ..core.design_space import PARAMETER_RANGES
 
 
 def _label(result: DesignResult, name: str) -> str:
