@@ -51,7 +51,10 @@ def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     profile that barely excites a mode is not judged against that mode's tiny
     excursion.
     """
-    G = system.input_integral(np.linspace(0.0, T, 65))
+    # uniform points plus geometric ones near 0: a fast, damped mode peaks
+    # (and decays) long before T on a long move
+    grid = np.concatenate([np.linspace(0.0, T, 65), np.geomspace(T * 1e-6, T, 61)])
+    G = system.input_integral(grid)
     s = np.abs(x0) + u_max * np.max(np.abs(G), axis=0)
     return np.where(s > 0.0, s, 1.0)
 
@@ -251,14 +254,28 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     return nuh, f, dm
 
 
-def outer_newton(inner, T_low: float, T: float, nuh, tol: float, max_outer: int = 100):
-    """Safeguarded Newton on ``log m(T) = 0`` in ``log T`` (``m`` non-decreasing).
+def next_time(T: float, m: float, dm: float, lo: float, hi: float) -> float:
+    """One safeguarded Newton step on ``log m(T) = 0`` in ``log T``.
 
-    ``inner(T, nuh) -> (nuh, m, dm/dT)``.  ``m`` behaves like a power of ``T``
-    (for short moves a high one: the reachable set of an integrator chain
-    grows like ``T^k``), so Newton in logarithms converges where Newton on
-    ``m - 1`` would jump far; steps are capped at a factor 4 and kept inside
-    the bracket.
+    ``m`` behaves like a power of ``T`` (for short moves a high one: the
+    reachable set of an integrator chain grows like ``T^k``), so Newton in
+    logarithms converges where Newton on ``m - 1`` would jump far; steps are
+    capped at a factor 4 and kept inside the bracket ``(lo, hi)``.
+    """
+    if m > 0.0 and dm > 0.0:
+        elasticity = T * dm / m  # d log m / d log T
+        Tn = T * math.exp(max(-math.log(4.0), min(math.log(4.0), -math.log(m) / elasticity)))
+    else:
+        Tn = math.nan
+    if not (lo < Tn < hi):
+        Tn = 2.0 * T if math.isinf(hi) else (0.5 * (lo + hi) if lo > 0.0 else 0.5 * hi)
+    return Tn
+
+
+def outer_newton(inner, T_low: float, T: float, nuh, tol: float, max_outer: int = 100):
+    """Solve ``m(T) = 1`` (``m`` non-decreasing) by :func:`next_time` steps.
+
+    ``inner(T, nuh) -> (nuh, m, dm/dT)``.  Returns ``(nuh, T)``.
     """
     lo, hi = T_low, math.inf
     for _ in range(max_outer):
@@ -269,13 +286,7 @@ def outer_newton(inner, T_low: float, T: float, nuh, tol: float, max_outer: int 
             lo = max(lo, T)
         else:
             hi = min(hi, T)
-        if m > 0.0 and dm > 0.0:
-            elasticity = T * dm / m  # d log m / d log T
-            Tn = T * math.exp(max(-math.log(4.0), min(math.log(4.0), -math.log(m) / elasticity)))
-        else:
-            Tn = math.nan
-        if not (lo < Tn < hi):
-            Tn = 2.0 * T if math.isinf(hi) else (0.5 * (lo + hi) if lo > 0.0 else 0.5 * hi)
+        Tn = next_time(T, m, dm, lo, hi)
         if abs(Tn - T) <= 1e-15 * T:
             break
         T = Tn

@@ -78,7 +78,7 @@ def rigid_profile(model: ModalModel, u_max: float, x0: np.ndarray, include_posit
     T = first * -V + 2.0 * math.sqrt(max(-first * X + V * V / 2.0, 0.0))
     t1 = 0.5 * (T - first * V)
     if c != 0.0:
-        T, t1 = _viscous_switch(c, a, p, v, first, T, t1)
+        T, t1, first = _viscous_solution(c, a, p, v, first, T, t1)
     if t1 <= 0.0 or t1 >= T:  # starts on the switching curve: one bang
         levels = np.array([first * u_max])
         switches = np.empty(0)
@@ -88,51 +88,58 @@ def rigid_profile(model: ModalModel, u_max: float, x0: np.ndarray, include_posit
     return RigidProfile(T, switches, levels, _rigid_nu(model, T, switches, levels))
 
 
-def _viscous_switch(c: float, a: float, p: float, v: float, first: float, T: float, t1: float) -> tuple[float, float]:
-    """Switch time and duration with viscous damping (``p'' = c p' + a u``), by Newton.
+def _viscous_solution(c: float, a: float, p: float, v: float, first: float, T: float, t1: float) -> tuple[float, float, float]:
+    """Switch time and duration with viscous damping (``p'' = c p' + a u``, ``c < 0``).
 
-    Starts from the frictionless solution; the structure (one switch,
-    ``first`` then ``-first``) is the same.
+    The last arc (level ``s a``) must end at rest at the origin: its velocity
+    tends to the terminal velocity ``vs = -s a/c``, so it must start on the
+    other side of zero (``v1/vs <= 0``: it brakes) and lasts
+    ``h = -ln(1 - v1/vs)/c``, covering a known distance.
+    So the first arc's duration ``t1`` solves one scalar equation (position at
+    the switch equals the position the last arc needs), found by scanning and
+    bracketing for both orders of levels; the shortest solution is optimal
+    (the rigid body has one switch at most).  ``first``, ``T`` and ``t1`` (the
+    frictionless answer) only set the scan range.  Returns ``(T, t1, first)``.
     """
-    def final(t1: float, T: float) -> tuple[np.ndarray, np.ndarray]:
-        # exact solution of v' = c v + a s on each interval
-        def step(p0, v0, s, h):
-            e = math.exp(c * h)
-            vs = -a * s / c  # equilibrium velocity
-            v1 = vs + (v0 - vs) * e
-            p1 = p0 + vs * h + (v0 - vs) * math.expm1(c * h) / c
-            return p1, v1
+    best: tuple[float, float, float] | None = None
+    for s in (1.0, -1.0):  # level of the last arc
+        vs = -s * a / c
+        w = -vs  # velocity the first arc (level -s) tends to
 
-        p1, v1 = step(p, v, first, t1)
-        p2, v2 = step(p1, v1, -first, T - t1)
-        # derivatives: d/dt1 and d/dT of (p2, v2)
-        e2 = math.exp(c * (T - t1))
-        dv1_dt1 = c * v1 + a * first
-        dp1_dt1 = v1
-        # d(p2, v2)/dt1 through (p1, v1) and through the second interval length
-        dv2 = dv1_dt1 * e2 - (c * v2 - a * first)
-        dp2 = dp1_dt1 + dv1_dt1 * math.expm1(c * (T - t1)) / c - v2
-        J = np.array([[dp2, v2], [dv2, c * v2 - a * first]])
-        return np.array([p2, v2]), J
+        def gap(t):
+            """Position at the switch minus what the last arc needs, and its length (arrays)."""
+            t = np.asarray(t, dtype=float)
+            x = w + (v - w) * np.exp(c * t)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                h = -np.log1p(-x / vs) / c
+                p1 = p + w * t + (v - w) * np.expm1(c * t) / c
+                p_needed = -vs * h - (x - vs) * np.expm1(c * h) / c
+            return p1 - p_needed, h, x / vs <= 0.0  # admissible: the last arc brakes
 
-    for _ in range(60):
-        F, J = final(t1, T)
-        if np.max(np.abs(F)) <= 1e-15 * (abs(p) + abs(v) * T + a * T * T):
-            break
-        try:
-            d = np.linalg.solve(J, -F)
-        except np.linalg.LinAlgError:
-            break
-        step = 1.0
-        while step > 1e-6:
-            t1n, Tn = t1 + step * d[0], T + step * d[1]
-            if 0.0 <= t1n <= Tn and np.max(np.abs(final(t1n, Tn)[0])) < np.max(np.abs(F)):
-                break
-            step *= 0.5
-        else:
-            break  # no progress: converged to rounding
-        t1, T = t1n, Tn
-    return T, t1
+        # beyond settling (~1/|c|) p1 drifts at |w|: the switch is within reach of that
+        horizon = max(T, t1, 1.0) + 50.0 / -c + 2.0 * (abs(p) + abs(v) / -c) / abs(w)
+        # uniform and geometric points: short moves switch within a tiny window
+        ts = np.unique(np.concatenate([np.linspace(0.0, horizon, 2001), np.geomspace(horizon * 1e-12, horizon, 2001)]))
+        g, _, adm = gap(ts)
+        ok = adm[:-1] & adm[1:] & ((g[:-1] == 0.0) | (g[:-1] * g[1:] < 0.0))
+        for i in np.flatnonzero(ok):
+            lo, hi, glo = ts[i], ts[i + 1], g[i]
+            for _ in range(200):  # bisection to rounding
+                mid = 0.5 * (lo + hi)
+                gm = float(gap(mid)[0])
+                if gm == 0.0 or mid in (lo, hi):
+                    break
+                if (gm < 0.0) == (glo < 0.0):
+                    lo, glo = mid, gm
+                else:
+                    hi = mid
+            t_sw = 0.5 * (lo + hi)
+            total = t_sw + float(gap(t_sw)[1])
+            if best is None or total < best[0]:
+                best = (total, t_sw, -s)
+    if best is None:
+        return T, t1, first
+    return best
 
 
 def _rigid_nu(model: ModalModel, T: float, switches: np.ndarray, levels: np.ndarray) -> np.ndarray:

@@ -41,7 +41,7 @@ from .certificate import Certificate, certify
 from .errors import SolverError
 from .modal_response import ModalResponse
 from .profile import BangBangProfile
-from .reachable_set import Shooting, inner_exact, inner_smooth, outer_newton, polish, rescale, state_scale
+from .reachable_set import Shooting, inner_exact, inner_smooth, next_time, outer_newton, polish, rescale, state_scale
 from .rigid_body import rigid_profile, rigid_time
 from .simulation import PiecewiseConstant, simulate
 from .switch_newton import structure_newton
@@ -69,26 +69,32 @@ def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float
     """
     T = max(T_init, T_low, 1e-300)
     nuh, _, _ = inner_smooth(sh, T, None, 0.05)
-
-    def exact(T, v, rtol=1e-9):
-        v, m, dm, _ = inner_exact(sh, T, v, rtol=rtol)
-        return v, m, dm
-
-    # the switch structure at the first guess is often already right: try the
-    # switch-time Newton from there, then again after the outer iteration
-    nuh, _, _, e = inner_exact(sh, T, nuh, rtol=1e-9)
-    found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
-    if found is not None:
-        return found
-    nuh, T = outer_newton(exact, T_low, T, nuh, tol=1e-3)
-    nuh = rescale(sh, nuh, T)
-    found = structure_newton(sh, nuh, T, T_low=T_low)
-    if found is not None:
-        return found
-    nuh, T = outer_newton(lambda T, v: exact(T, v, 1e-15), T_low, T, nuh, tol=1e-11)
+    lo, hi = T_low, math.inf
+    tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
+    for _ in range(60):
+        nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
+        gap = abs(m - 1.0)
+        # the switch structure is often right long before T is: try the
+        # switch-time Newton whenever m has come markedly closer to 1
+        if gap < 0.5 and gap < 0.25 * tried_gap or tried_gap == math.inf:
+            tried_gap = gap
+            nuh = rescale(sh, nuh, T)
+            found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+            if found is not None:
+                return found
+        if gap <= 1e-11:
+            break
+        if m < 1.0:
+            lo = max(lo, T)
+        else:
+            hi = min(hi, T)
+        T = next_time(T, m, dm, lo, hi)
+    # last resort: full-accuracy nested iteration, then the joint Newton polish
+    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11)
     nuh = rescale(sh, nuh, T)
     nuh, T, e, r = polish(sh, nuh, T)
     return nuh, T, e.roots, e.signs, r
+
 
 @dataclass
 class BangBangSolution:
