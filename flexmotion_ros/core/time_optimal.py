@@ -41,7 +41,7 @@ from .certificate import Certificate, certify
 from .errors import SolverError
 from .modal_response import ModalResponse
 from .profile import BangBangProfile
-from .reachable_set import Shooting, inner_exact, inner_smooth, next_time, outer_newton, polish, rescale, state_scale
+from .reachable_set import POLISH_TOL, Shooting, inner_exact, inner_smooth, next_time, outer_newton, polish, rescale, state_scale
 from .rigid_body import rigid_profile, rigid_time
 from .simulation import PiecewiseConstant, simulate
 from .switch_newton import structure_newton
@@ -93,6 +93,10 @@ def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float
     nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11)
     nuh = rescale(sh, nuh, T)
     nuh, T, e, r = polish(sh, nuh, T)
+    if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
+        found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+        if found is not None:
+            return found
     return nuh, T, e.roots, e.signs, r
 
 
