@@ -140,7 +140,9 @@ def certify(
     grid = sample_grid(system, T, density=2.0)
     if tau_sw.size and grid.size > 2:  # keep every switch well inside a cell
         h = grid[1] - grid[0]
-        near = np.abs(grid[:, None] - tau_sw[None, :]).min(axis=1) < 0.25 * h
+        k = np.clip(np.searchsorted(tau_sw, grid), 1, tau_sw.size) - 1  # nearest switches
+        dist = np.minimum(np.abs(grid - tau_sw[k]), np.abs(grid - tau_sw[np.minimum(k + 1, tau_sw.size - 1)]))
+        near = dist < 0.25 * h
         near[[0, -1]] = False
         grid = grid[~near]
     iso = isolate_roots(system, nu, T, grid)

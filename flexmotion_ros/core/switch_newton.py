@@ -56,22 +56,14 @@ def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarr
     for _ in range(max_iter):
         if rn <= 16.0 * np.finfo(float).eps:
             break
-        J = np.zeros((n + L + 1, L + n + 1))
-        J[:n, :L] = (g * jump[:, None]).T  # dF/dtau_j = jump_j e^{A tau_j} B / s
-        J[:n, -1] = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
-        if L:
-            _, dS = sys.switching(nuh / s, tau, derivative=True)
-            J[n : n + L, :L] = np.diag(dS * gscale)
-            J[n : n + L, L : L + n] = g * gscale
-        J[-1, L : L + n] = anchor
-        try:
-            step = np.linalg.solve(J, -r)
-        except np.linalg.LinAlgError:
-            step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        fT = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
+        dS = sys.switching(nuh / s, tau, derivative=True)[1] if L else np.zeros(0)
+        step = _newton_step(g * jump[:, None], fT, dS * gscale, g * gscale, anchor, r, n, L)
         if np.max(np.abs(np.append(step[:L], step[-1]))) <= 4.0 * np.finfo(float).eps * T:
             break  # converged: the step is below rounding of the times
         t = 1.0
-        for _ in range(12):
+        # converged to within POLISH_TOL: one more full step if it helps, no line search
+        for _ in range(12 if rn > POLISH_TOL else 1):
             tau_c = tau + t * step[:L]
             T_c = T + t * step[-1]
             nu_c = nuh + t * step[L : L + n]
@@ -89,6 +81,45 @@ def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarr
         if np.sign(sys.switching(nuh / s, np.array([first]))[0]) != sign0:
             nuh = -nuh
     return rn <= POLISH_TOL, tau, nuh, T, rn
+
+
+def _newton_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
+    """Solve the arrow-shaped Newton system of :func:`refine_switches`.
+
+    Unknowns ``(dtau (L), dnu (n), dT)``; rows: final state ``Gj^T dtau + fT dT``
+    (n), switch conditions ``D dtau + Gs dnu`` (L, ``D`` diagonal), and the
+    normalisation ``anchor . dnu``.  Eliminating ``dtau`` leaves an
+    ``(n+1) x (n+1)`` system, so the cost is ``O(L n^2)``: optima with
+    thousands of switches (a weak actuator killing a large vibration) stay cheap.
+    """
+    rF, rS, ra = r[:n], r[n : n + L], r[-1]
+    scale = float(np.max(np.abs(D))) if L else 1.0
+    if L == 0 or np.min(np.abs(D)) > 1e-12 * scale:
+        Dinv = 1.0 / D if L else np.zeros(0)
+        A = Gj.T  # (n, L)
+        M = -(A * Dinv) @ Gs if L else np.zeros((n, n))
+        K = np.zeros((n + 1, n + 1))
+        K[:n, :n] = M
+        K[:n, n] = fT
+        K[n, :n] = anchor
+        rhs = np.concatenate([-rF + (A @ (Dinv * rS) if L else 0.0), [-ra]])
+        try:
+            sol = np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:
+            sol, *_ = np.linalg.lstsq(K, rhs, rcond=None)
+        dnu, dT = sol[:n], sol[n]
+        dtau = Dinv * (-rS - Gs @ dnu) if L else np.zeros(0)
+        return np.concatenate([dtau, dnu, [dT]])
+    if L > 2000:
+        return np.zeros(L + n + 1)  # a tangency among thousands of switches: give up
+    J = np.zeros((n + L + 1, L + n + 1))  # a switch with S' = 0: the dense system copes
+    J[:n, :L] = Gj.T
+    J[:n, -1] = fT
+    J[n : n + L, :L] = np.diag(D)
+    J[n : n + L, L : L + n] = Gs
+    J[-1, L : L + n] = anchor
+    step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+    return step
 
 
 def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0):

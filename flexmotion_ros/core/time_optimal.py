@@ -50,6 +50,9 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 
 #: Accept a profile whose relative final-state error is below this.
 FINAL_STATE_RTOL = 1e-9
+#: Refuse moves whose optimum needs more switches than this (an actuator far
+#: too weak for the state: a chattering move of thousands of periods).
+MAX_SWITCHES = 5000
 
 
 def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
@@ -68,11 +71,28 @@ def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float
     The caller certifies whatever comes out.
     """
     T = max(T_init, T_low, 1e-300)
-    nuh, _, _ = inner_smooth(sh, T, None, 0.05)
+    # a few cheap steps on T with the smoothed inner problem bring T close
+    nuh = None
+    lo, hi = T_low, math.inf
+    for _ in range(4):
+        nuh, m, dm = inner_smooth(sh, T, nuh, 0.05)
+        if abs(math.log(m)) < 0.02 if m > 0.0 else False:
+            break
+        if m < 1.0:
+            lo = max(lo, T)
+        else:
+            hi = min(hi, T)
+        T = next_time(T, m, dm, lo, hi)
     lo, hi = T_low, math.inf
     tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
     for _ in range(60):
         nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
+        if e.roots.size > MAX_SWITCHES:
+            raise SolverError(
+                f"the optimal move needs about {e.roots.size} switches over {T:.4g} s (more than "
+                f"{MAX_SWITCHES}): the actuator is too weak for this state; raise u_max or start "
+                "from a calmer state"
+            )
         gap = abs(m - 1.0)
         # the switch structure is often right long before T is: try the
         # switch-time Newton whenever m has come markedly closer to 1
