@@ -23,6 +23,7 @@ COMMAND_MODULES = [
     "flexmotion_ros.cli.design_cmd",
     "flexmotion_ros.cli.shaper_cmd",
     "flexmotion_ros.cli.compare_cmd",
+    "flexmotion_ros.cli.demo_cmd",
 ]
 
 
@@ -47,7 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except (FlexmotionError, SolverError) as exc:
-        sys.stderr.write(f"flexmotion: error: {exc}\n")
+        message = " ".join(str(exc).split())  # always one line
+        sys.stderr.write(f"flexmotion: error: {message}\n")
         return 2
     except BrokenPipeError:  # e.g. piped into head: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -12,6 +12,7 @@ import yaml
 from ..core.boundary import motion_to_rest, rest_to_rest, state_to_rest
 from ..core.config import ConfigError, load_config
 from ..core.errors import GoalError
+from ..core.model import check_positive
 from ..core.planning import plan_move
 
 
@@ -71,7 +72,7 @@ def problem_from_args(config, goal: float | None, initial_velocity: float | None
 def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     problem = problem_from_args(config, args.goal, args.initial_velocity)
-    rate = args.rate
+    rate = None if args.rate is None else check_positive("rate_hz", args.rate, "Hz")
     result = plan_move(config, problem, rate_hz=rate)
     out = result.summary()
     if args.json:

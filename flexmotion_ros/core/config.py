@@ -48,6 +48,27 @@ DEFAULTS: dict[str, Any] = {
 }
 
 
+#: Parameters in a shared file that belong to the nodes, the plant, rclpy or
+#: the design command, never to a planning method.
+NOT_OPTION_PREFIXES = ("plant.", "design.", "qos_overrides.")
+NOT_OPTIONS = frozenset(
+    {
+        "lockstep",
+        "command_timeout",
+        "publish_rate_hz",
+        "publish_hold_when_idle",
+        "stream_priority",
+        "initial_position",
+        "replan_lead_s",
+        "max_trajectory_points",
+        "frame_id",
+        "diagnostics_period_s",
+        "use_sim_time",
+        "start_type_description_service",
+    }
+)
+
+
 class ConfigError(FlexmotionError):
     """A configuration file or parameter set that cannot be used."""
 
@@ -161,8 +182,9 @@ def unflatten(params: Mapping[str, Any]) -> dict[str, Any]:
 def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
     """Build and validate a :class:`PlannerConfig` from flat ROS parameters.
 
-    Missing names take :data:`DEFAULTS`; names that are not known planner or
-    method parameters are kept in ``options`` for the methods to validate.
+    Missing names take :data:`DEFAULTS`; other names are kept in ``options``
+    for the methods to validate, except those of the nodes, the plant and the
+    design command (:data:`NOT_OPTIONS`, :data:`NOT_OPTION_PREFIXES`).
     """
     p = dict(DEFAULTS)
     p.update(params)
@@ -173,7 +195,11 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         zeta=tuple(p["model.zeta"] or ()),
         b=tuple(p["model.b"] or ()),
     )
-    options = {k: v for k, v in p.items() if k not in DEFAULTS}
+    options = {
+        k: v
+        for k, v in p.items()
+        if k not in DEFAULTS and k not in NOT_OPTIONS and not k.startswith(NOT_OPTION_PREFIXES)
+    }
     return PlannerConfig(
         model=model,
         u_max=p["u_max"],
@@ -197,13 +223,17 @@ def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[
     except FileNotFoundError:
         raise ConfigError("config", f"file not found: {path}") from None
     except yaml.YAMLError as exc:
-        raise ConfigError("config", f"{path} is not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError("config", f"{path} is not valid YAML{where}: {problem}") from None
     if not isinstance(data, Mapping):
         raise ConfigError("config", f"{path}: expected a mapping of node names to ros__parameters")
     params: dict[str, Any] = {}
     keys = ["/**", "**"]
     if node_name:
-        keys += [node_name, "/" + node_name.lstrip("/")]
+        bare = node_name.lstrip("/")
+        keys += [bare, "/" + bare]  # ROS matches 'node' and '/node' alike
     found = False
     for key in keys:
         section = data.get(key)
@@ -250,7 +280,7 @@ def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
 
 
 #: Parameters that are integers, not doubles.
-_INT_PARAMS = {"robust_order"}
+_INT_PARAMS = {"robust_order", "design.force_on"}
 
 
 def write_config(path: str | Path, config: PlannerConfig, header: str = "") -> None:

@@ -306,6 +306,29 @@ class ModalResponse:
             bound += float(np.sum(amp * self.w**order))
         return bound
 
+    def switching_derivative_bound_from(self, nu: np.ndarray, order: int, tau: np.ndarray) -> np.ndarray:
+        """Upper bound on ``|d^order S / dtau^order|`` over ``[tau, inf)``, for each ``tau``.
+
+        Every term of ``S`` decays (``e^{c tau}``, ``e^{-zeta omega tau}``), so
+        its bound at the start of an interval holds on the whole interval;
+        far from ``tau = 0`` on long, damped moves this is much tighter than
+        :meth:`switching_derivative_bound`.
+        """
+        nu = np.asarray(nu, dtype=float)
+        tau = np.asarray(tau, dtype=float)
+        c = abs(self.c)
+        nv = abs(nu[self.r - 1])
+        if self.include_position:
+            rigid = abs(self.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
+        else:
+            rigid = abs(self.b0) * nv * c**order
+        bound = rigid * np.exp(self.c * tau)
+        if self.w.size:
+            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+            amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm) * self.w**order
+            bound = bound + np.exp(-np.outer(tau, self.sig)) @ amp
+        return bound
+
     def switching_derivative_bounds(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Upper bounds on ``|S'|`` and ``|S''|`` over ``[0, tau_max]``.
 

@@ -79,8 +79,10 @@ def rigid_profile(model: ModalModel, u_max: float, x0: np.ndarray, include_posit
     t1 = 0.5 * (T - first * V)
     if c != 0.0:
         T, t1, first = _viscous_solution(c, a, p, v, first, T, t1)
-    if t1 <= 0.0 or t1 >= T:  # starts on the switching curve: one bang
-        levels = np.array([first * u_max])
+    if abs(t1) <= 1e-12 * T or abs(T - t1) <= 1e-12 * T:  # on the switching curve, to rounding
+        t1 = 0.0 if abs(t1) <= abs(T - t1) else T
+    if t1 <= 0.0 or t1 >= T:  # starts on the switching curve: one bang, the second (or the first)
+        levels = np.array([(-first if t1 <= 0.0 else first) * u_max])
         switches = np.empty(0)
     else:
         levels = np.array([first, -first]) * u_max

@@ -153,7 +153,12 @@ def isolate_roots(
     if grid is None:
         grid = sample_grid(system, T)
     K = order
-    M = system.switching_derivative_bound(nu, K + 1)
+    local = getattr(system, "switching_derivative_bound_from", None)
+
+    def bound(a: np.ndarray) -> np.ndarray | float:
+        """Bound on ``|S^(K+1)|`` over cells starting at ``a``."""
+        return local(nu, K + 1, a) if local is not None else system.switching_derivative_bound(nu, K + 1)
+
     fact = np.array([math.factorial(j) for j in range(K + 1)], dtype=float)
     mag0, _ = system.switching_magnitude(nu, T)
     grid = np.asarray(grid, dtype=float)
@@ -175,7 +180,7 @@ def isolate_roots(
         h = b - a
         Sa, dSa = Da[0], Da[1]
         hp = h[None, :] ** np.arange(1, K)[:, None]  # h^(j-1) for j = 2..K
-        R = np.sum(np.abs(Da[2:]) * hp / fact[1:K, None], axis=0) + M * h**K / fact[K]
+        R = np.sum(np.abs(Da[2:]) * hp / fact[1:K, None], axis=0) + bound(a) * h**K / fact[K]
         change = np.sign(Sa) * np.sign(Sb) < 0
         free = ~change & (np.abs(Sa) + np.abs(Sb) > (np.abs(dSa) + R) * h)
         mono = np.abs(dSa) > R

@@ -156,7 +156,7 @@ def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: 
     x0 = np.asarray(x0, dtype=float)
     sh = Shooting(system, x0, u_max, max(T_init, 1e-300))
     nuh, T, roots, signs, _ = _solve(sh, T_low, T_init)
-    switch_times = np.sort(T - roots)
+    switch_times = np.clip(np.sort(T - roots), 0.0, T)
     return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
 
 def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
@@ -211,7 +211,7 @@ def _rigid_is_optimal(system: ModalResponse, x0: np.ndarray, u_max: float, rigid
 
 def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low=None) -> BangBangProfile:
     um = problem.u_max
-    switch_times = np.sort(T - roots_tau)
+    switch_times = np.clip(np.sort(T - roots_tau), 0.0, T)
     levels = um * signs_tau[::-1]
     u = PiecewiseConstant.from_switches(switch_times, levels, T)
     x0s = problem.shifted_initial()
