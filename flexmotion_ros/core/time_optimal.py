@@ -50,6 +50,9 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 
 #: Accept a profile whose relative final-state error is below this.
 FINAL_STATE_RTOL = 1e-9
+#: A shifted state whose every entry is below this (state units) is at rest:
+#: no physical move is 1e-100 m, and squares of such numbers underflow.
+AT_REST = 1e-100
 #: Refuse moves whose optimum needs more switches than this (an actuator far
 #: too weak for the state: a chattering move of thousands of periods).
 MAX_SWITCHES = 5000
@@ -180,7 +183,7 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
     model, um = problem.model, problem.u_max
     system = ModalResponse(model, problem.include_position)
     x0 = problem.shifted_initial()
-    if not np.any(x0):
+    if not np.any(np.abs(x0) > AT_REST):
         return _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
     rigid = rigid_profile(model, um, x0, problem.include_position)
     T_low = rigid.duration

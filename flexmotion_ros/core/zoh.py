@@ -44,8 +44,11 @@ from .profile import BangBangProfile, SampledProfile
 from .simulation import simulate_samples
 from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal, state_scale
 
-#: Relative slack on the bound when accepting an LP solution before correction.
+#: Relative slack on the bound in a proof of infeasibility (dual bound).
 BOUND_RTOL = 1e-12
+#: LP peak commands up to this far above u_max are tried: the LP solver's own
+#: tolerance; the exact correction then either lands within u_max or fails.
+LP_RTOL = 1e-6
 MAX_EXTRA_SAMPLES = 200
 
 
@@ -163,8 +166,7 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     # signs of the continuous optimum at the sample midpoints, aligned at the end
-    scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
+    scale = state_scale(system, x0, um, T)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
     if not np.any(nu):
@@ -195,17 +197,20 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
             # no sequence at all reaches the target in K samples (fewer samples
             # than states): the least-squares residual proves it
             u_ls, *_ = np.linalg.lstsq(G.T, w, rcond=None)
-            if np.max(np.abs(G.T @ u_ls - w)) > 1e-9 * max(float(np.max(np.abs(w))), 1e-300):
+            if np.max(np.abs(G.T @ u_ls - w)) > 1e-6 * max(float(np.max(np.abs(w))), 1e-300):
                 proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
                 K += 1
                 continue
             raise SolverError(f"sampled planner: linear program failed at {K} samples")
         u, t_star, bound, nu_lp = result
-        if t_star <= um * (1.0 + BOUND_RTOL):
-            u_exact = _correct(G, w, u * (um / max(t_star, um)) if t_star > um else u, um)
-            if u_exact is not None:
-                cmds = u_exact[::-1].copy()  # m = samples to go -> forward order
-                return _finish(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
+        if t_star <= um * (1.0 + LP_RTOL):  # the exact correction and checks decide
+            u_in = u * (um / max(t_star, um))
+            # a least-norm correction; or, at a degenerate vertex (t* = u_max,
+            # every command saturated, nothing to adjust), the LP point itself
+            for cand in (_correct(G, w, u_in, um), np.clip(u_in, -um, um)):
+                if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
+                    cmds = cand[::-1].copy()  # m = samples to go -> forward order
+                    return _finish(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
