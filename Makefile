@@ -18,7 +18,7 @@ $(STAMP): setup.py package.xml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/flexmotion plan --config config/wie_bernstein.yaml --goal 1.0 --rate 1000
+	$(VENV)/bin/flexmotion demo --config config/wie_bernstein.yaml --goal 1.0 --plot demo.png
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -38,6 +38,8 @@ setup(
     entry_points={
         "console_scripts": [
             "flexmotion = flexmotion_ros.cli.main:entry",
+            "planner = flexmotion_ros.nodes.planner_node:main",
+            "plant = flexmotion_ros.nodes.plant_node:main",
         ],
     },
 )

@@ -1,0 +1,317 @@
+"""``flexmotion demo``: planner and plant as real ROS 2 nodes, one move, a summary and a plot.
+
+Starts ``flexmotion_planner`` and ``flexmotion_plant`` as two processes
+(``python -m flexmotion_ros.nodes.planner_node`` / ``plant_node``: the same
+code as ``ros2 run flexmotion_ros planner`` / ``plant``) talking over real
+DDS, asks ``~/move`` for the goal, records ``commands`` and ``joint_states``
+until the plant has applied the whole stream, then prints what was planned
+and what the plant did, and writes a PNG (command, position, modal
+deflections).
+
+Isolation: unless ``ROS_DOMAIN_ID`` is set, the demo picks a random domain
+(1..100) with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` for itself and its
+nodes, all in a namespace of its own.  rclpy is imported only when the demo
+runs, so the rest of the command line works without ROS.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..core.config import ConfigError, load_config, read_parameter_file
+from ..core.errors import GoalError
+
+#: The default parameter file: the Wie-Bernstein benchmark (source tree or installed share).
+_PKG = Path(__file__).resolve().parents[2]
+
+
+def default_config() -> str | None:
+    for candidate in (_PKG / "config" / "wie_bernstein.yaml", _PKG.parent / "share" / "flexmotion_ros" / "config" / "wie_bernstein.yaml"):
+        if candidate.is_file():
+            return str(candidate)
+    return None
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="closed loop over ROS 2: planner + simulated plant, one move, summary and plot")
+    p.add_argument("--config", default=None, help="ROS 2 parameter file (default: config/wie_bernstein.yaml)")
+    p.add_argument("--goal", type=float, default=1.0, help="target position (m or rad), from rest at 0 (default 1.0)")
+    p.add_argument("--plot", default="demo.png", help="PNG to write (default demo.png; '' for none)")
+    p.add_argument("--rate", type=float, default=None, help="command rate (Hz; default: the file's rate_hz)")
+    p.add_argument("--realtime", action="store_true", help="plant on its own clock (default: lockstep, one sample per command)")
+    p.add_argument("--apply-at", choices=["send", "arrival"], default="send", dest="apply_at",
+                   help="real time: commands act from their send time (default: the planner's timing alone) or their "
+                        "DDS arrival at the plant (adds the transport and the plant process's scheduling)")
+    p.add_argument("--omega-scale", type=float, nargs="+", dest="omega_scale", help="plant model error: true/nominal frequency per mode")
+    p.add_argument("--timeout", type=float, default=60.0, help="give up after this many seconds (default 60)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    config_path = args.config or default_config()
+    if config_path is None:
+        raise ConfigError("config", "no default parameter file found; give --config FILE")
+    config = load_config(config_path)  # refuse a bad file before starting anything
+    if not math.isfinite(args.goal):
+        raise GoalError("goal", f"must be finite, got {args.goal}")
+    config.check_goal(args.goal)
+    rate = float(args.rate or config.rate_hz)
+    if not (0.0 < rate <= 1e6):
+        raise ConfigError("rate_hz", f"must be in (0, 1e6] Hz, got {rate}")
+    plant_params = read_parameter_file(config_path, "flexmotion_plant")
+    plant_params.update({"rate_hz": rate, "lockstep": not args.realtime})
+    if args.omega_scale:
+        plant_params["plant.omega_scale"] = [float(s) for s in args.omega_scale]
+    from ..nodes.parameters import (
+        plant_config_from_parameters,  # validates the model error too
+    )
+
+    plant_cfg = plant_config_from_parameters(plant_params)
+    return _Demo(args, config_path, config, plant_cfg, rate).run()
+
+
+class _Demo:
+    def __init__(self, args, config_path, config, plant_cfg, rate) -> None:
+        self.args, self.config_path, self.config, self.plant_cfg, self.rate = args, config_path, config, plant_cfg, rate
+        self.dt = 1.0 / rate
+        self.namespace = f"/flexmotion_demo_{os.getpid()}"
+        self.procs: list[subprocess.Popen] = []
+        self.logdir = Path(tempfile.mkdtemp(prefix="flexmotion_demo_"))
+
+    # ------------------------------------------------------------ processes
+    def _environment(self) -> dict[str, str]:
+        env = dict(os.environ)
+        if "ROS_DOMAIN_ID" not in env:
+            env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 100))
+            env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")
+        env["PYTHONUNBUFFERED"] = "1"
+        return env
+
+    def _start(self, module: str, params: list[str], env: dict[str, str]) -> None:
+        cmd = [sys.executable, "-m", f"flexmotion_ros.nodes.{module}", "--ros-args", "-r", f"__ns:={self.namespace}",
+               "--params-file", self.config_path]
+        for p in params:
+            cmd += ["-p", p]
+        log = open(self.logdir / f"{module}.log", "w")  # noqa: SIM115 -- the child keeps it
+        self.procs.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+
+    def _stop_all(self) -> None:
+        for p in self.procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in self.procs:
+            try:
+                p.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=5.0)
+
+    def _check_alive(self) -> None:
+        for p in self.procs:
+            if p.poll() is not None:
+                name = Path(p.args[2]).name if len(p.args) > 2 else "node"
+                log = "\n".join((self.logdir / f"{n}.log").read_text() for n in ("planner_node", "plant_node") if (self.logdir / f"{n}.log").exists())
+                raise RuntimeError(f"{name} exited with status {p.returncode}:\n{log}")
+
+    # ------------------------------------------------------------------ run
+    def run(self) -> int:
+        env = self._environment()
+        os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE") if k in env})
+        rate = f"rate_hz:={self.rate!r}"
+        self._start("planner_node", [rate, "publish_hold_when_idle:=false", "stream_priority:=50"], env)
+        plant = [rate, f"lockstep:={'false' if self.args.realtime else 'true'}"]
+        if self.args.realtime:  # commands apply at their arrival whatever the publish rate; spare the CPU
+            plant += ["publish_rate_hz:=250.0", f"plant.apply_at:={self.args.apply_at}"]
+        if self.args.omega_scale:
+            plant.append("plant.omega_scale:=[" + ",".join(repr(float(s)) for s in self.args.omega_scale) + "]")
+        self._start("plant_node", plant, env)
+        import rclpy
+
+        rclpy.init(args=[])
+        status = 1
+        try:
+            status = self._drive(rclpy)
+            return status
+        except RuntimeError as exc:
+            sys.stderr.write(f"flexmotion: error: {exc}\n")
+            return 1
+        finally:
+            self._stop_all()
+            rclpy.try_shutdown()
+            if status == 0:  # the node logs are kept only when something went wrong
+                shutil.rmtree(self.logdir, ignore_errors=True)
+
+    def _drive(self, rclpy) -> int:
+        from diagnostic_msgs.msg import DiagnosticArray
+        from nav_msgs.srv import GetPlan
+        from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+
+        from ..nodes import messages
+        from ..nodes.planner_node import COMMAND_QOS, DIAGNOSTIC_NAME
+        from ..nodes.plant_node import DIAGNOSTIC_NAME as PLANT_DIAGNOSTIC_NAME
+        from ..nodes.plant_node import PLANT_QOS
+
+        node = rclpy.create_node("flexmotion_demo", namespace=self.namespace)
+        lock = threading.Lock()
+        commands: list[tuple[float, float]] = []
+        states: list[tuple[float, np.ndarray, float]] = []
+        status: dict = {}
+        plant_status: dict = {}
+
+        def on_command(msg) -> None:
+            with lock:
+                commands.append((time.time(), messages.command_value(msg)))
+
+        def on_state(msg) -> None:
+            with lock:
+                states.append((messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), msg.effort[0]))
+
+        def on_diag(msg) -> None:
+            st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME)
+            if st is not None:
+                with lock:
+                    status.update(level=st[0], message=st[1], values=st[2])
+            st = messages.diagnostic_values(msg, PLANT_DIAGNOSTIC_NAME)
+            if st is not None:
+                with lock:
+                    plant_status.update(st[2])
+
+        node.create_subscription(Float64MultiArray, "commands", on_command, COMMAND_QOS)
+        node.create_subscription(JointState, "joint_states", on_state, PLANT_QOS)
+        node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
+        move = node.create_client(GetPlan, "flexmotion_planner/move")
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        deadline = time.monotonic() + self.args.timeout
+
+        def wait(pred, what: str) -> None:
+            while not pred():
+                self._check_alive()
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f"timed out waiting for {what} (node logs in {self.logdir}); "
+                                       f"{len(commands)} commands, {len(states)} plant samples received")
+                time.sleep(0.02)
+
+        try:
+            print(f"starting flexmotion_planner and flexmotion_plant ({'real time' if self.args.realtime else 'lockstep'}, "
+                  f"{self.rate:g} Hz, ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')}) ...", flush=True)
+            wait(lambda: move.service_is_ready(), "the planner's ~/move service")
+            # the planner must see both the plant and us on 'commands' before streaming
+            wait(lambda: int(status.get("values", {}).get("command_subscribers", 0)) >= 2, "plant and demo subscribed to commands")
+            req = GetPlan.Request()
+            req.goal.pose.position.x = float(self.args.goal)
+            t_req = time.time()
+            future = move.call_async(req)
+            wait(future.done, "the ~/move answer")
+            plan = future.result().plan
+            reason = messages.path_error(plan)
+            if reason is not None:
+                raise RuntimeError(f"~/move refused: {reason}")
+            K = len(plan.poses) - 1
+            planned_t = np.array([messages.from_time(p.header.stamp) for p in plan.poses])
+            planned_p = np.array([p.pose.position.x for p in plan.poses])
+            wait(lambda: len(commands) >= K + 1, f"{K + 1} commands")
+            if self.args.realtime:
+                # every command integrated (from its arrival time), then watch it stand still
+                wait(lambda: int(plant_status.get("commands_applied", 0)) >= K + 1, f"the plant to apply {K + 1} commands")
+                t_done = time.time() + 0.5
+                # states published after that (this process may lag behind the plant)
+                wait(lambda: bool(states) and states[-1][0] > t_done, "the plant's state after the move")
+            else:
+                wait(lambda: len(states) >= K + 1, f"{K + 1} plant samples (got {len(states)} so far)")
+            time.sleep(0.3)
+            wait(lambda: status.get("message") == "idle", "the planner's idle status")
+        finally:
+            executor.shutdown(timeout_sec=1.0)
+            node.destroy_node()
+        with lock:
+            cmds, sts, diag = list(commands), list(states), dict(status)
+            diag["plant"] = dict(plant_status)
+        return self._report(t_req, cmds, sts, diag, planned_t, planned_p, K)
+
+    # --------------------------------------------------------------- report
+    def _report(self, t_req, cmds, sts, diag, planned_t, planned_p, K) -> int:
+        from ..core.simulation import modal_amplitudes
+        from ..plots.demo import plot_demo
+
+        model = self.plant_cfg.model
+        goal = float(self.args.goal)
+        move = abs(goal - self.plant_cfg.initial_position) or 1.0
+        u = np.array([c[1] for c in cmds])
+        t_recv = np.array([c[0] for c in cmds])
+        X = np.array([s[1] for s in sts])
+        values = diag.get("values", {})
+        t_cmd = self.dt * np.arange(u.size)  # sample k is due at k / rate
+        if self.args.realtime:
+            # joint_states stamps against the first command's due time (the path's first stamp)
+            t_x = np.array([s[0] for s in sts]) - planned_t[0]
+            tol = 1e-2
+        else:
+            t_x = self.dt * np.arange(1, len(X) + 1)  # state after each command
+            tol = 1e-6
+        ok = (np.abs(X[:, 0] - goal) <= tol * move) & np.all(modal_amplitudes(model, X) <= tol * move, axis=-1) & (np.abs(X[:, 1]) <= tol * move)
+        # arrival: from the first sample after which the plant stays at the goal, at rest
+        bad = np.flatnonzero(~ok)
+        arrived = bool(ok[-1])
+        i_arr = (bad[-1] + 1) if bad.size else 0
+        x_end = X[-1]
+        amps = modal_amplitudes(model, x_end)
+        planned = K * self.dt
+        stream_wall = t_recv[K] - t_recv[0] if len(t_recv) > K else math.nan
+        lines = [
+            f"move                 {self.plant_cfg.initial_position:g} -> {goal:g}  ({self.config_path})",
+            (
+                f"planned duration     {planned:.6f} s  ({K} samples at {self.rate:g} Hz; continuous optimum "
+                f"{float(values.get('last_plan.continuous_duration_s', 'nan')):.6f} s, certified {values.get('last_plan.certified', '?')})"
+            ),
+            f"goal -> first command {(t_recv[0] - t_req) * 1e3:.1f} ms (planning {float(values.get('last_plan.plan_time_s', 'nan')) * 1e3:.1f} ms)",
+        ]
+        if arrived:
+            t_arr = t_x[i_arr]
+            lines.append(
+                f"measured arrival     {t_arr:.6f} s {'(plant time, sample ' + str(i_arr + 1) + ')' if not self.args.realtime else '(wall clock)'}"
+                f" -- within {tol:g} of the move in position, velocity and every mode"
+            )
+        else:
+            lines.append(f"measured arrival     not within {tol:g} of the move (see the residuals)")
+        lines += [
+            (
+                f"stream               received here over {stream_wall:.6f} s ({K} commands + hold); sent with period median "
+                f"{float(values.get('last_plan.stream_period_median_ms', 'nan')):.3f} ms, p99 "
+                f"{float(values.get('last_plan.stream_period_p99_ms', 'nan')):.3f} ms, max {float(values.get('last_plan.stream_period_max_ms', 'nan')):.3f} ms"
+            ),
+            f"peak |command|       {np.max(np.abs(u)):.9g} N (u_max {self.config.u_max:g})",
+            f"final position error {x_end[0] - goal:+.3e}   final velocity {x_end[1]:+.3e}",
+        ]
+        for name, a in zip(model.names, amps):
+            lines.append(f"residual {name:<11} {a:.3e}  ({a / move:.1e} of the move)")
+        if self.args.realtime:
+            p = diag.get("plant", {})
+            lines.append(f"plant (real time)    {p.get('commands_applied', '?')} commands applied from their {self.args.apply_at} times; "
+                         f"worst arrival -> integration lag {float(p.get('max_lag_ms', 'nan')):.1f} ms; timeouts {p.get('timeouts', '?')}")
+        if self.args.omega_scale:
+            lines.append(f"plant model error    omega x {self.args.omega_scale}: the planner used {list(self.config.model.omega)} rad/s")
+        print("\n".join(lines))
+        if self.args.plot:
+            title = f"flexmotion demo: {goal:g} in {planned:.4f} s ({'real time' if self.args.realtime else 'lockstep'} plant, {self.rate:g} Hz)"
+            out = plot_demo(self.args.plot, t_cmd, u, self.config.u_max, t_x, X, planned_t - planned_t[0], planned_p, goal, model.names, title)
+            print(f"plot                 {out}")
+        return 0 if arrived or self.args.omega_scale else 1

@@ -1,0 +1,398 @@
+"""ROS parameters of the nodes: declarations, descriptors and validation.
+
+Both nodes read the same parameter file as ``flexmotion plan``
+(``--ros-args --params-file FILE``; nested keys such as ``model: {b0: ...}``
+become the dotted names ``model.b0``).  Every parameter is declared with a
+default and a :class:`ParameterDescriptor` (description with units, a range
+where one is meaningful, ``read_only`` where a change cannot apply live).
+
+Validation is the core's: a candidate parameter set is turned into a
+:class:`~flexmotion_ros.core.config.PlannerConfig` by
+:func:`~flexmotion_ros.core.config.config_from_parameters` (the same function
+``flexmotion plan`` uses), so the command line and the nodes accept and
+refuse exactly the same files.  The plant adds its model-error and friction
+parameters (:func:`plant_config_from_parameters`).
+
+Changing the number of modes needs ``model.omega``, ``model.zeta`` and
+``model.b`` in one atomic set (``SetParametersAtomically``); one at a time,
+each intermediate set has mismatched lengths and is refused.
+"""
+
+from __future__ import annotations
+
+import array
+import importlib
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..core.config import DEFAULTS, ConfigError, PlannerConfig, config_from_parameters
+from ..core.errors import FlexmotionError
+from ..core.model import ModalModel
+from ..core.planning import load_methods
+
+INF = math.inf
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One declared parameter.
+
+    Attributes
+    ----------
+    name : str
+        Dotted ROS parameter name.
+    default : Any
+        Default value, or a :class:`Parameter.Type` for lists whose default is
+        empty (rclpy cannot infer a type from ``[]``).
+    description : str
+        What it is, with its unit and allowed values.
+    read_only : bool
+        A change cannot apply live (fixed at start-up).
+    fp_range, int_range : tuple, optional
+        ``(from, to)`` for a descriptor range.
+    """
+
+    name: str
+    default: Any
+    description: str
+    read_only: bool = False
+    fp_range: tuple[float, float] | None = None
+    int_range: tuple[int, int] | None = None
+
+    def descriptor(self) -> ParameterDescriptor:
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        if self.fp_range is not None:
+            d.floating_point_range = [FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)]
+        if self.int_range is not None:
+            d.integer_range = [IntegerRange(from_value=int(self.int_range[0]), to_value=int(self.int_range[1]), step=1)]
+        return d
+
+
+def _model_specs(read_only: bool) -> list[Spec]:
+    tail = " Fixed at start-up (the simulated machine)." if read_only else " A change applies to the next goal."
+    return [
+        Spec("model.b0", DEFAULTS["model.b0"], "rigid-body input gain b0 (acceleration per unit input, e.g. 1/kg); non-zero." + tail, read_only),
+        Spec("model.c", DEFAULTS["model.c"], "rigid-body viscous term c (1/s), <= 0." + tail, read_only, fp_range=(-1e12, 0.0)),
+        Spec(
+            "model.omega",
+            Parameter.Type.DOUBLE_ARRAY,
+            "undamped modal frequencies omega_i (rad/s), each > 0, no two equal; empty: rigid body only." + tail,
+            read_only,
+        ),
+        Spec("model.zeta", Parameter.Type.DOUBLE_ARRAY, "modal damping ratios zeta_i, each in [0, 1), one per mode." + tail, read_only),
+        Spec("model.b", Parameter.Type.DOUBLE_ARRAY, "modal input gains b_i, each non-zero, one per mode." + tail, read_only),
+    ]
+
+
+def _method_description() -> str:
+    load_methods()
+    from ..core.config import METHODS
+
+    return "profile type, one of: " + ", ".join(sorted(METHODS)) + ". A change applies to the next goal."
+
+
+def planner_specs() -> list[Spec]:
+    """Declared parameters of ``flexmotion_planner``."""
+    return _model_specs(read_only=False) + [
+        Spec("u_max", DEFAULTS["u_max"], "actuator bound |u| <= u_max (N or the model's input unit), > 0. Applies to the next goal.", fp_range=(0.0, 1e12)),
+        Spec(
+            "rate_hz",
+            DEFAULTS["rate_hz"],
+            "command rate (Hz) of the stream on 'commands' and of the exact zero-order-hold plan, in (0, 1e6]. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e6),
+        ),
+        Spec("method", DEFAULTS["method"], _method_description()),
+        Spec("limits.position_min", DEFAULTS["limits.position_min"], "lowest goal position accepted (m or rad); -inf: no limit."),
+        Spec("limits.position_max", DEFAULTS["limits.position_max"], "highest goal position accepted (m or rad); inf: no limit."),
+        Spec(
+            "publish_hold_when_idle",
+            True,
+            "true: keep publishing the hold command (0) at rate_hz while idle; false: the stream ends with one explicit hold sample after each move.",
+        ),
+        Spec(
+            "stream_priority",
+            0,
+            "1..99: run the command stream thread under SCHED_FIFO at this priority (Linux, needs CAP_SYS_NICE or an "
+            "rtprio limit; refused: a warning and normal scheduling); 0: normal scheduling. Fixed at start-up.",
+            read_only=True,
+            int_range=(0, 99),
+        ),
+        Spec("initial_position", 0.0, "position (m or rad) the planner assumes, at rest, at start-up. Fixed at start-up.", read_only=True),
+        Spec(
+            "replan_lead_s",
+            0.05,
+            "smallest look-ahead (s) of a preemption or stop: the new plan starts at a sample at least this far ahead "
+            "(and at least 1.5 x the slowest recent plan + 20 ms), in [0, 60].",
+            fp_range=(0.0, 60.0),
+        ),
+        Spec(
+            "max_trajectory_points",
+            10000,
+            "most points in ~/planned_trajectory and in a GetPlan path; longer plans are decimated (every m-th sample, last one kept).",
+            int_range=(2, 10_000_000),
+        ),
+        Spec("frame_id", "world", "frame_id of the paths answered by ~/move and ~/plan."),
+        Spec("diagnostics_period_s", 1.0, "period (s) of the status on /diagnostics (also sent on every change), in [0.01, 3600]. Fixed at start-up.", read_only=True, fp_range=(0.01, 3600.0)),
+    ]
+
+
+#: Planner parameters that are not part of the core's PlannerConfig.
+PLANNER_NODE_ONLY = frozenset(
+    {"publish_hold_when_idle", "stream_priority", "initial_position", "replan_lead_s", "max_trajectory_points", "frame_id", "diagnostics_period_s"}
+)
+
+
+def plant_specs() -> list[Spec]:
+    """Declared parameters of ``flexmotion_plant``."""
+    return _model_specs(read_only=True) + [
+        Spec(
+            "rate_hz",
+            DEFAULTS["rate_hz"],
+            "sample rate (Hz): lockstep advances 1/rate_hz per command; real time integrates and publishes at this rate. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e6),
+        ),
+        Spec("lockstep", False, "true: advance one sample period per command received (deterministic, for tests); false: real time. Fixed at start-up.", read_only=True),
+        Spec(
+            "publish_rate_hz",
+            0.0,
+            "real-time mode: rate (Hz) of the timer that integrates and publishes joint_states; 0: rate_hz. "
+            "Commands apply from their arrival times whatever this rate. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e6),
+        ),
+        Spec("command_timeout", 0.1, "real-time mode: seconds without a command after which zero force is applied, in [0, 3600].", fp_range=(0.0, 3600.0)),
+        Spec(
+            "plant.omega_scale",
+            Parameter.Type.DOUBLE_ARRAY,
+            "model error: true/nominal frequency ratio of each mode (each > 0); empty: 1 for every mode.",
+        ),
+        Spec("plant.extra_zeta", Parameter.Type.DOUBLE_ARRAY, "model error: damping ratio added to each mode (each >= 0, total < 1); empty: none."),
+        Spec(
+            "plant.coulomb_force",
+            0.0,
+            "Coulomb friction force (N, >= 0) at the rigid body (eq. 2.11), simulated by core.friction; 0: none.",
+            fp_range=(0.0, 1e12),
+        ),
+        Spec(
+            "plant.apply_at",
+            "arrival",
+            "real-time mode: a command acts from its DDS 'arrival' time at this node, or from its 'send' time at the "
+            "publisher (a transport of constant latency; same clock needed, i.e. one machine).",
+        ),
+        Spec("plant.initial_position", 0.0, "initial rigid-body position (m or rad), at rest. Fixed at start-up.", read_only=True),
+    ]
+
+
+#: Names the planner must not mistake for method options (the plant's, rclpy's own).
+PLANT_ONLY_PREFIXES = ("plant.", "qos_overrides.")
+PLANT_ONLY_NAMES = frozenset({"lockstep", "command_timeout", "publish_rate_hz", "use_sim_time", "start_type_description_service"})
+
+
+# --------------------------------------------------------------------------- declaration
+def plain(value: Any) -> Any:
+    """A ROS parameter value as plain Python (arrays become lists)."""
+    if isinstance(value, (array.array, tuple)):
+        return list(value)
+    return value
+
+
+def declare(node: Node, specs: Iterable[Spec]) -> None:
+    """Declare ``specs`` on ``node``; a bad value in the parameter file raises :class:`ConfigError`."""
+    for spec in specs:
+        try:
+            node.declare_parameter(spec.name, spec.default, spec.descriptor())
+        except InvalidParameterTypeException as exc:
+            hint = " (write doubles as 2.0, not 2)" if isinstance(spec.default, float) or spec.default == Parameter.Type.DOUBLE_ARRAY else ""
+            raise ConfigError(spec.name, f"wrong type{hint}: {exc}") from None
+        except InvalidParameterValueException as exc:
+            raise ConfigError(spec.name, str(exc)) from None
+
+
+def declared_values(node: Node, names: Iterable[str]) -> dict[str, Any]:
+    """Current values of declared parameters (unset lists read as ``[]``)."""
+    out: dict[str, Any] = {}
+    for name in names:
+        p = node.get_parameter_or(name, Parameter(name, Parameter.Type.DOUBLE_ARRAY, []))
+        out[name] = plain(p.value) if p.value is not None else []
+    return out
+
+
+def parameter_overrides(node: Node) -> dict[str, Any]:
+    """Values given to the node at start-up (parameter file, ``-p``, constructor).
+
+    rclpy has no public accessor for these; the attribute has been stable since
+    Foxy.  Used only to find method options the planner does not know by name.
+    """
+    overrides = getattr(node, "_parameter_overrides", {}) or {}
+    return {name: plain(p.value) for name, p in overrides.items()}
+
+
+def declare_method_options(node: Node, known: Iterable[str]) -> list[str]:
+    """Declare the parameter file's remaining names as method options (e.g. ``robust_order``).
+
+    Names of the plant and of rclpy are skipped.  Returns the declared names.
+    """
+    known = set(known)
+    names = []
+    for name, value in sorted(parameter_overrides(node).items()):
+        if name in known or node.has_parameter(name) or name in PLANT_ONLY_NAMES or name.startswith(PLANT_ONLY_PREFIXES):
+            continue
+        if value is None:
+            continue
+        spec = Spec(name, value, "option of the planning method (see 'method'); validated by the method. A change applies to the next goal.")
+        declare(node, [spec])
+        names.append(name)
+    return names
+
+
+def planner_config(values: Mapping[str, Any]) -> PlannerConfig:
+    """The core configuration from the planner's parameter values (node-only names dropped)."""
+    return config_from_parameters({k: v for k, v in values.items() if k not in PLANNER_NODE_ONLY})
+
+
+def validating_callback(
+    current: Callable[[], dict[str, Any]], validate: Callable[[dict[str, Any]], Any]
+) -> Callable[[list[Parameter]], SetParametersResult]:
+    """An on-set-parameters callback: build the whole candidate set and validate it.
+
+    ``current()`` returns the node's parameter values; ``validate(candidate)``
+    raises :class:`FlexmotionError` to refuse (its text becomes ``reason``).
+    """
+
+    def callback(params: list[Parameter]) -> SetParametersResult:
+        candidate = current()
+        for p in params:
+            candidate[p.name] = plain(p.value) if p.value is not None else []
+        try:
+            validate(candidate)
+        except FlexmotionError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        except (TypeError, ValueError) as exc:  # e.g. a string where a number belongs
+            return SetParametersResult(successful=False, reason=f"invalid value: {exc}")
+        return SetParametersResult(successful=True)
+
+    return callback
+
+
+# --------------------------------------------------------------------------- plant
+@dataclass(frozen=True)
+class PlantConfig:
+    """The simulated machine.
+
+    Attributes
+    ----------
+    nominal : ModalModel
+        The model in the parameter file (what the planner believes).
+    model : ModalModel
+        The simulated machine: ``nominal`` with the model errors applied.
+    rate_hz : float
+        Sample rate (Hz).
+    lockstep : bool
+    command_timeout : float
+        Seconds (s) without command before zero force (real-time mode).
+    coulomb_force : float
+        Coulomb friction force (N) at the rigid body; 0: none.
+    initial_position : float
+        Initial rigid-body position (m or rad).
+    apply_at : str
+        Real time: commands act from their ``"arrival"`` or ``"send"`` time.
+    """
+
+    nominal: ModalModel
+    model: ModalModel
+    rate_hz: float
+    lockstep: bool
+    command_timeout: float
+    coulomb_force: float
+    initial_position: float
+    apply_at: str = "arrival"
+
+    @property
+    def dt(self) -> float:
+        """Sample period (s)."""
+        return 1.0 / self.rate_hz
+
+
+def _friction_module():
+    """``core.friction`` (written by the friction work), imported only when friction is asked for."""
+    try:
+        return importlib.import_module("flexmotion_ros.core.friction")
+    except ImportError:
+        return None
+
+
+def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
+    """Validate the plant's parameters; raise :class:`FlexmotionError` naming the bad one."""
+    base = config_from_parameters({k: values[k] for k in ("model.b0", "model.c", "model.omega", "model.zeta", "model.b", "rate_hz") if k in values})
+    nominal = base.model
+    n = nominal.n_modes
+    scale = list(values.get("plant.omega_scale") or [])
+    extra = list(values.get("plant.extra_zeta") or [])
+    if scale and len(scale) != n:
+        raise ConfigError("plant.omega_scale", f"needs one factor per mode ({n}) or none, got {len(scale)}")
+    if extra and len(extra) != n:
+        raise ConfigError("plant.extra_zeta", f"needs one value per mode ({n}) or none, got {len(extra)}")
+    for i, s in enumerate(scale):
+        if not (math.isfinite(s) and s > 0.0):
+            raise ConfigError(f"plant.omega_scale[{i}]", f"must be a finite factor > 0, got {s}")
+    for i, z in enumerate(extra):
+        if not (math.isfinite(z) and z >= 0.0):
+            raise ConfigError(f"plant.extra_zeta[{i}]", f"must be finite and >= 0, got {z}")
+    omega = tuple(w * (scale[i] if scale else 1.0) for i, w in enumerate(nominal.omega))
+    zeta = tuple(z + (extra[i] if extra else 0.0) for i, z in enumerate(nominal.zeta))
+    try:
+        model = nominal.with_changes(omega=omega, zeta=zeta)
+    except FlexmotionError as exc:
+        raise ConfigError("plant.omega_scale/extra_zeta", f"the perturbed model is invalid: {exc}") from None
+    coulomb = float(values.get("plant.coulomb_force", 0.0))
+    if not (math.isfinite(coulomb) and coulomb >= 0.0):
+        raise ConfigError("plant.coulomb_force", f"must be finite and >= 0 N, got {coulomb}")
+    if coulomb > 0.0 and _friction_module() is None:
+        raise ConfigError(
+            "plant.coulomb_force",
+            "needs flexmotion_ros.core.friction (simulate_coulomb), which this installation does not have yet; use 0.0",
+        )
+    timeout = float(values.get("command_timeout", 0.1))
+    if not (math.isfinite(timeout) and timeout >= 0.0):
+        raise ConfigError("command_timeout", f"must be finite and >= 0 s, got {timeout}")
+    p0 = float(values.get("plant.initial_position", 0.0))
+    if not math.isfinite(p0):
+        raise ConfigError("plant.initial_position", f"must be finite, got {p0}")
+    apply_at = str(values.get("plant.apply_at", "arrival"))
+    if apply_at not in ("arrival", "send"):
+        raise ConfigError("plant.apply_at", f"must be 'arrival' or 'send', got {apply_at!r}")
+    return PlantConfig(
+        apply_at=apply_at,
+        nominal=nominal,
+        model=model,
+        rate_hz=base.rate_hz,
+        lockstep=bool(values.get("lockstep", False)),
+        command_timeout=timeout,
+        coulomb_force=coulomb,
+        initial_position=p0,
+    )
+
+
+def friction_step():
+    """``simulate_coulomb`` from ``core.friction`` (call only when friction is configured)."""
+    module = _friction_module()
+    if module is None:  # validated earlier; kept for a clear message if the module vanished
+        raise ConfigError("plant.coulomb_force", "flexmotion_ros.core.friction is not available")
+    return module.simulate_coulomb

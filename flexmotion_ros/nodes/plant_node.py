@@ -1,0 +1,307 @@
+"""``flexmotion_plant``: a simulated flexible machine that closes the loop.
+
+``ros2 run flexmotion_ros plant --ros-args --params-file config/wie_bernstein.yaml -p lockstep:=true``
+
+Subscribes to ``commands`` (std_msgs/Float64MultiArray, first element = u)
+and publishes ``joint_states`` (sensor_msgs/JointState: ``rigid_body``,
+``mode_1`` ... ``mode_N``; position and velocity of each; effort = the
+applied command on every joint) and its status on ``/diagnostics``.
+
+Integration is exact (zero-order hold, the core's matrix-exponential
+propagation :func:`core.simulation.step_matrices` of the simulated model; no
+ODE solver):
+
+* ``lockstep: true`` -- each command received advances exactly one sample
+  period ``1/rate_hz``, then the state is published: deterministic, for tests;
+* ``lockstep: false`` -- real time on the system clock: each command applies
+  from the instant DDS received it (``MessageInfo.received_timestamp``, on a
+  1 us grid; ``plant.apply_at: send`` uses the publisher's send time instead:
+  a transport with constant latency, immune to this process being starved of
+  CPU) and is held; after ``command_timeout`` s without a command
+  the force is zero.  Commands are queued as they are handed over and
+  integrated in order by a timer at ``rate_hz`` (``publish_rate_hz`` to
+  publish less often), which then propagates to now and publishes.  So a
+  command that a busy executor hands over late still applies exactly from its
+  arrival; a published state may miss commands not yet handed over.
+
+Model error (``plant.omega_scale``, ``plant.extra_zeta``) makes the simulated
+machine differ from the parameter file the planner uses, to show what a wrong
+model costs; ``plant.coulomb_force`` adds Coulomb friction at the rigid body
+(simulated by ``core.friction.simulate_coulomb``).
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import sys
+import threading
+import time
+from collections import deque
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from ..core.errors import FlexmotionError
+from ..core.simulation import PiecewiseConstant, step_matrices
+from . import messages
+from .parameters import (
+    PlantConfig,
+    declare,
+    declared_values,
+    friction_step,
+    plant_config_from_parameters,
+    plant_specs,
+    validating_callback,
+)
+
+NODE_NAME = "flexmotion_plant"
+DIAGNOSTIC_NAME = "flexmotion_plant: simulation"
+#: Deep (10 s at 1 kHz) and reliable both ways, so that lockstep tests and the demo see every sample.
+PLANT_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: Real-time event times are kept on this grid (s), so step matrices can be cached.
+TIME_QUANTUM = 1e-6
+_CACHE_LIMIT = 20000
+#: Silent this long (us) after a cut-off, the zero force is settled into the state
+#: (a busy executor has been measured handing commands over > 1 s late).
+SETTLE_US = 10_000_000
+
+
+class PlantNode(Node):
+    """The simulated plant; ``Node`` keyword arguments pass through.
+
+    Raises
+    ------
+    FlexmotionError
+        Invalid start-up parameters (the node is destroyed).
+    """
+
+    def __init__(self, **node_kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **node_kwargs)
+        try:
+            self._setup()
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    def _setup(self) -> None:
+        specs = plant_specs()
+        self._names = [s.name for s in specs]
+        declare(self, specs)
+        self._lock = threading.Lock()
+        self._apply(plant_config_from_parameters(self._values()))
+        cfg = self.cfg
+        self.add_on_set_parameters_callback(validating_callback(self._values, plant_config_from_parameters))
+        self.add_post_set_parameters_callback(lambda params: self._apply(plant_config_from_parameters(self._values())))
+
+        # Real time keeps the state at the last *event* (a command's arrival):
+        # x_event at t_event (integer microseconds on the system clock since
+        # start-up, the clock DDS receive stamps use), command u held since.
+        self.x_event = cfg.model.rest_state(cfg.initial_position)
+        self.x = self.x_event.copy()  # the last published state
+        self.u = 0.0
+        self.received = 0  # commands handed over by the executor
+        self.applied = 0  # commands integrated
+        self.timeouts = 0
+        self.max_lag = 0.0  # s, arrival -> integration (real time)
+        self._events: deque[tuple[int, float]] = deque()
+        self._origin_ns = time.time_ns()
+        self._t_event = 0
+        self._last_command_at: int | None = None
+        self.joint_names = ["rigid_body"] + list(cfg.model.names)
+
+        self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # commands one at a time, in order; the timers in their own groups
+        self.create_subscription(Float64MultiArray, "commands", self._on_command, PLANT_QOS, callback_group=MutuallyExclusiveCallbackGroup())
+        if not cfg.lockstep:
+            rate = float(self._values()["publish_rate_hz"]) or cfg.rate_hz
+            self.create_timer(1.0 / rate, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_timer(0.5, self.publish_diagnostics, callback_group=MutuallyExclusiveCallbackGroup())
+        gc.collect()  # as the planner: keep full collections off the real-time path
+        gc.freeze()
+        errors = []
+        if cfg.model != cfg.nominal:
+            errors.append(f"omega {list(cfg.model.omega)} rad/s, zeta {list(cfg.model.zeta)} (file: {list(cfg.nominal.omega)}, {list(cfg.nominal.zeta)})")
+        if cfg.coulomb_force > 0.0:
+            errors.append(f"Coulomb friction {cfg.coulomb_force:g} N")
+        self._model_error = "; ".join(errors) or "none"
+        self.get_logger().info(
+            f"ready: {'lockstep' if cfg.lockstep else 'real time'} at {cfg.rate_hz:g} Hz, {cfg.model.n_modes} mode(s), "
+            f"at {cfg.initial_position:g}" + (f"; model error: {self._model_error}" if errors else "")
+        )
+
+    # ------------------------------------------------------------ parameters
+    def _values(self) -> dict[str, Any]:
+        return declared_values(self, self._names)
+
+    def _apply(self, cfg: PlantConfig) -> None:
+        """Use ``cfg`` from the next step on (model errors and friction may change live)."""
+        A, B = cfg.model.A(), cfg.model.B()
+        with self._lock:
+            self.cfg = cfg
+            self._A, self._B = A, B
+            self._steps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+            self._Phi, self._Gam = step_matrices(A, B, cfg.dt)
+            self._coulomb = friction_step() if cfg.coulomb_force > 0.0 else None
+            self._timeout_us = round(cfg.command_timeout / TIME_QUANTUM)
+            self._stamp_key = "source_timestamp" if cfg.apply_at == "send" else "received_timestamp"
+
+    # ----------------------------------------------------------- integration
+    def _step(self, x: np.ndarray, h: float, u: float, h_key: int | None = None) -> np.ndarray:
+        """Exact zero-order-hold step: ``h`` s (``h_key`` in TIME_QUANTUM units, for the cache) with ``u`` (N)."""
+        if h <= 0.0:
+            return x
+        if self._coulomb is not None:
+            pc = PiecewiseConstant(np.array([0.0, h]), np.array([u]))
+            return np.asarray(self._coulomb(self.cfg.model, x, pc, self.cfg.coulomb_force), float)[-1]
+        if h_key is None:
+            Phi, Gam = self._Phi, self._Gam
+        else:
+            m = self._steps.get(h_key)
+            if m is None:
+                if len(self._steps) > _CACHE_LIMIT:
+                    self._steps.clear()
+                m = self._steps[h_key] = step_matrices(self._A, self._B, h_key * TIME_QUANTUM)
+            Phi, Gam = m
+        return Phi @ x + Gam * u
+
+    def _cutoff(self) -> float:
+        """Time (us) from which the held command stops acting (its arrival + command_timeout)."""
+        return -math.inf if self._last_command_at is None else self._last_command_at + self._timeout_us
+
+    def _state_at(self, t: int) -> np.ndarray:
+        """Real time: state at ``t`` (us) from the last event: ``u`` until the timeout, then 0.
+
+        The timeout is applied here, never stored: a command that the executor
+        hands over after the cut-off but that arrived before it still counts.
+        """
+        x, t0 = self.x_event, self._t_event
+        cutoff = self._cutoff()
+        if t <= cutoff:
+            return self._step(x, (t - t0) * TIME_QUANTUM, self.u, t - t0)
+        if cutoff > t0:
+            x = self._step(x, (cutoff - t0) * TIME_QUANTUM, self.u, cutoff - t0)
+            t0 = int(cutoff)
+        return self._step(x, (t - t0) * TIME_QUANTUM, 0.0, t - t0)
+
+    def _integrate_events(self, now: int) -> None:
+        """Apply the queued commands in order, each from its arrival time."""
+        while self._events:
+            arrived, u = self._events.popleft()
+            arrived = max(arrived, self._t_event)  # in order; never step back
+            if arrived > self._cutoff() and self.u != 0.0:
+                self._note_timeout()
+            self.x_event = self._state_at(arrived)
+            self._t_event = arrived
+            self.u = u
+            self._last_command_at = arrived
+            self.applied += 1
+            self.max_lag = max(self.max_lag, (now - arrived) * TIME_QUANTUM)
+        if self.u != 0.0 and now > self._cutoff() + max(SETTLE_US, 100 * self._timeout_us):
+            # long silent: no late command can still arrive before the cut-off; settle it
+            self._note_timeout()
+            self.x_event = self._state_at(now)
+            self._t_event = now
+            self.u = 0.0
+
+    def _note_timeout(self) -> None:
+        self.timeouts += 1
+        self.get_logger().warning(f"no command for {self.cfg.command_timeout:g} s: zero force from then on")
+
+    def _now(self) -> int:
+        """System clock since start-up, in TIME_QUANTUM units."""
+        return (time.time_ns() - self._origin_ns) // 1000
+
+    def _on_command(self, msg: Float64MultiArray, info: dict) -> None:  # two arguments: rclpy passes MessageInfo
+        u = messages.command_value(msg)
+        if not math.isfinite(u):
+            self.get_logger().error(f"non-finite command {u}: applying zero force")
+            u = 0.0
+        with self._lock:
+            self.received += 1
+            if self.cfg.lockstep:
+                self.x = self.x_event = self._step(self.x_event, self.cfg.dt, u)
+                self.u = u
+                self.applied += 1
+                self._publish(u)
+                return
+            arrived = self._now()
+            stamp = info.get(self._stamp_key) if info else None
+            if stamp:
+                arrived = min(arrived, (stamp - self._origin_ns) // 1000)
+            self._events.append((arrived, u))
+
+    def _on_timer(self) -> None:
+        with self._lock:
+            now = self._now()
+            self._integrate_events(now)
+            self.x = self._state_at(now)
+            self._publish(self.u if now <= self._cutoff() else 0.0)
+
+    def _publish(self, u: float) -> None:
+        self._pub.publish(messages.joint_state(self.joint_names, self.x, u, self.get_clock().now().to_msg()))
+
+    def state(self) -> np.ndarray:
+        """Simulated state ``[p, v, q1, q1', ...]``: now (real time, commands handed over so far) or after the last command (lockstep)."""
+        with self._lock:
+            if self.cfg.lockstep:
+                return self.x_event.copy()
+            now = self._now()
+            self._integrate_events(now)
+            return self._state_at(now)
+
+    def publish_diagnostics(self) -> None:
+        with self._lock:
+            values = {
+                "mode": "lockstep" if self.cfg.lockstep else "real time",
+                "rate_hz": self.cfg.rate_hz,
+                "commands_received": self.received,
+                "commands_applied": self.applied,
+                "max_lag_ms": self.max_lag * 1e3,
+                "timeouts": self.timeouts,
+                "model_error": self._model_error,
+                "position": float(self.x[0]),
+            }
+        ok = DiagnosticStatus.OK
+        level = ok[0] if isinstance(ok, (bytes, bytearray)) else int(ok)
+        self._diag_pub.publish(
+            messages.diagnostics(DIAGNOSTIC_NAME, self.get_fully_qualified_name(), level, values["mode"], values, self.get_clock().now().to_msg())
+        )
+
+
+def main(args: list[str] | None = None) -> int:
+    """``ros2 run flexmotion_ros plant [--ros-args --params-file FILE -p lockstep:=true]``."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = PlantNode()
+        except FlexmotionError as exc:
+            sys.stderr.write(f"{NODE_NAME}: error: {exc}\n")
+            return 2
+        executor = SingleThreadedExecutor()  # the lowest overhead per callback (1 kHz commands + timer)
+        executor.add_node(node)
+        try:
+            executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            executor.shutdown(timeout_sec=1.0)
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""ROS test harness: real rclpy nodes over real DDS, isolated per pytest run.
+
+Isolation: each pytest run picks its own ``ROS_DOMAIN_ID`` (random in
+1..100, seeded by the pid) and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``,
+set here at import, before any ``rclpy.init``; every node also lives in a
+namespace unique to the run.  So two runs on one machine never talk.
+
+rclpy is imported at module level on purpose: where it is missing, the ROS
+tests fail at collection instead of being skipped.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+# small matrices: a multi-threaded BLAS is 100x slower on a loaded machine (see flexmotion_ros.nodes)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+import pytest
+import rclpy
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+_RNG = random.Random(os.getpid() ^ time.time_ns())
+os.environ["ROS_DOMAIN_ID"] = str(_RNG.randint(1, 100))
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+NAMESPACE = f"/flexmotion_test_{os.getpid()}_{_RNG.randrange(1 << 20)}"
+
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.srv import GetPlan
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from flexmotion_ros.nodes import messages
+from flexmotion_ros.nodes.planner_node import COMMAND_QOS, LATCHED_QOS, PlannerNode
+from flexmotion_ros.nodes.plant_node import PLANT_QOS, PlantNode
+
+#: A stiff two-mode machine: a 1.0 move takes 1.11 s at 200 Hz (222 samples).
+FAST: dict[str, Any] = {
+    "model.b0": 1.0,
+    "model.omega": [5.0, 13.0],
+    "model.zeta": [0.01, 0.02],
+    "model.b": [1.0, -0.7],
+    "u_max": 10.0,
+    "rate_hz": 200.0,
+}
+
+
+def overrides(params: dict[str, Any]) -> list[Parameter]:
+    return [Parameter(k, value=v) for k, v in params.items()]
+
+
+class Probe(Node):
+    """The test's own node: records every topic and talks to the planner's services."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__("probe", namespace=NAMESPACE, context=context)
+        self.lock = threading.Lock()
+        self.joint_states: list[JointState] = []
+        self.commands: list[tuple[float, float]] = []  # (receive time, value)
+        self.diagnostics: list[DiagnosticArray] = []
+        self.trajectories: list[JointTrajectory] = []
+        p = "flexmotion_planner/"
+        self.create_subscription(JointState, "joint_states", self._rec(self.joint_states), PLANT_QOS)
+        self.create_subscription(Float64MultiArray, "commands", self._on_command, COMMAND_QOS)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self._rec(self.diagnostics), 50)
+        self.create_subscription(JointTrajectory, p + "planned_trajectory", self._rec(self.trajectories), LATCHED_QOS)
+        self.goal_pub = self.create_publisher(Float64, p + "goal", 10)
+        self.jt_pub = self.create_publisher(JointTrajectory, p + "joint_trajectory", 10)
+        self.move = self.create_client(GetPlan, p + "move")
+        self.plan = self.create_client(GetPlan, p + "plan")
+        self.stop = self.create_client(Trigger, p + "stop")
+        self.set_params = self.create_client(SetParameters, p + "set_parameters")
+        self.set_params_atomically = self.create_client(SetParametersAtomically, p + "set_parameters_atomically")
+        self.command_pub = self.create_publisher(Float64MultiArray, "commands", COMMAND_QOS)
+
+    def _rec(self, store: list) -> Callable:
+        def cb(msg) -> None:
+            with self.lock:
+                store.append(msg)
+
+        return cb
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        with self.lock:
+            self.commands.append((time.monotonic(), messages.command_value(msg)))
+
+    def states(self) -> np.ndarray:
+        """Plant states received so far, one row per joint_states message."""
+        with self.lock:
+            msgs = list(self.joint_states)
+        return np.array([messages.state_from_joint_state(m) for m in msgs]) if msgs else np.empty((0, 0))
+
+    def command_values(self) -> np.ndarray:
+        with self.lock:
+            return np.array([v for _, v in self.commands])
+
+    def planner_status(self) -> tuple[int, str, dict[str, str]] | None:
+        with self.lock:
+            diags = list(self.diagnostics)
+        for d in reversed(diags):
+            st = messages.diagnostic_values(d, "flexmotion_planner: motion")
+            if st is not None:
+                return st
+        return None
+
+
+class Ros:
+    """Nodes of one test on one executor spinning in a background thread."""
+
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
+        self.nodes: list[Node] = []
+        self.probe = self.add(Probe(self.context))
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception as exc:  # noqa: BLE001 -- a shutdown race may end the spin; say so
+            print(f"executor stopped: {exc!r}")
+
+    def add(self, node: Node) -> Node:
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def planner(self, **params: Any) -> PlannerNode:
+        p = {**FAST, "publish_hold_when_idle": False, **params}
+        return self.add(PlannerNode(context=self.context, namespace=NAMESPACE, parameter_overrides=overrides(p)))
+
+    def plant(self, **params: Any) -> PlantNode:
+        p = {**{k: v for k, v in FAST.items() if k != "u_max"}, "lockstep": True, **params}
+        return self.add(PlantNode(context=self.context, namespace=NAMESPACE, parameter_overrides=overrides(p)))
+
+    def connected(self, planner: PlannerNode, subscribers: int = 2, timeout: float = 10.0) -> None:
+        """Wait until the command stream, the goal topics and the services are matched."""
+        probe = self.probe
+        wait_for(lambda: planner.commands_publisher.get_subscription_count() >= subscribers, timeout, "commands subscribers")
+        wait_for(lambda: probe.goal_pub.get_subscription_count() >= 1 and probe.jt_pub.get_subscription_count() >= 1, timeout, "goal topics")
+        for client in (probe.move, probe.plan, probe.stop, probe.set_params):
+            assert client.wait_for_service(timeout_sec=timeout), client.srv_name
+
+    def call(self, client, request, timeout: float = 10.0):
+        future = client.call_async(request)
+        wait_for(future.done, timeout, f"answer from {client.srv_name}")
+        return future.result()
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=2.0)
+        self._thread.join(timeout=5.0)
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float, what: str = "condition") -> None:
+    """Poll ``predicate`` until true; fail the test after ``timeout`` s (never hang)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return
+        time.sleep(0.01)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+@pytest.fixture
+def ros():
+    r = Ros()
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+def goal_request(x: float) -> GetPlan.Request:
+    req = GetPlan.Request()
+    req.goal.pose.position.x = float(x)
+    return req
