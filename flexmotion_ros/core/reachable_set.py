@@ -130,10 +130,30 @@ def trust_step(g: np.ndarray, H: np.ndarray, radius: float) -> tuple[np.ndarray,
     return V @ d, False
 
 
+def gram_metric(sh: Shooting, T: float, Z: np.ndarray) -> np.ndarray:
+    """``P`` with ``|P^T d|`` = the L2 norm on ``[0, T]`` of the change ``Z d`` makes in ``S``.
+
+    The trust region of :func:`inner_exact` is measured in this norm, i.e. by
+    how much a step changes the switching function, not by the size of the
+    co-state step.  For short moves (``omega T << 1``) the map from ``nu`` to
+    ``S`` is as ill-conditioned as a Vandermonde matrix, and a Euclidean trust
+    region would crawl along the weak directions.
+    """
+    grid = sample_grid(sh.sys, T)
+    wq = np.full(grid.size, grid[1] - grid[0])
+    wq[[0, -1]] *= 0.5
+    GZ = (sh.sys.expm_B(grid) / sh.s) @ Z
+    W = (GZ.T * wq) @ GZ
+    lam, V = np.linalg.eigh(W)
+    lam = np.maximum(lam, 1e-30 * max(float(lam[-1]), 1e-300))
+    return V * np.sqrt(lam)  # W = P P^T
+
+
 def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 100, rtol: float = 1e-14):
     """Minimise ``h_T`` on ``{nu : nu^T w = 1}`` (convex), by a trust-region Newton method.
 
-    Returns ``(nuh, m, dm/dT, eval)``.
+    The trust region bounds the change in the switching function
+    (:func:`gram_metric`).  Returns ``(nuh, m, dm/dT, eval)``.
     """
     w = -sh.sys.expm_x(T, sh.x0) / sh.s
     if nuh is None or float(nuh @ w) <= 0.0:
@@ -141,20 +161,22 @@ def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 
     else:
         nuh = nuh / float(nuh @ w)
     Z = null_basis(w)
+    P = gram_metric(sh, T, Z)
+    Pinv = np.linalg.inv(P)  # coordinates y = P^T d: |y| = |change in S|
     e = sh.evaluate(nuh, T)
-    radius = 0.5 * float(np.linalg.norm(nuh))
+    radius = 0.5 * _s_norm(sh, nuh, T)
     for _ in range(max_iter):
-        g = Z.T @ e.grad
-        Hr = Z.T @ e.H @ Z
-        d, newton = trust_step(g, Hr, radius)
-        pred = -float(g @ d + 0.5 * d @ Hr @ d)
-        if pred <= rtol * max(e.h, 1e-300) or radius <= 1e-15 * float(np.linalg.norm(nuh)):
+        g = Pinv @ (Z.T @ e.grad)  # gradient and Hessian in y
+        Hr = Pinv @ (Z.T @ e.H @ Z) @ Pinv.T
+        y, newton = trust_step(g, Hr, radius)
+        pred = -float(g @ y + 0.5 * y @ Hr @ y)
+        if pred <= rtol * max(e.h, 1e-300) or radius <= 1e-15 * _s_norm(sh, nuh, T):
             break
-        cand = nuh + Z @ d
+        cand = nuh + Z @ (Pinv.T @ y)
         ec = sh.evaluate(cand, T)
         rho = (e.h - ec.h) / pred
         if rho < 0.25:
-            radius = 0.25 * float(np.linalg.norm(d))
+            radius = 0.25 * float(np.linalg.norm(y))
         elif rho > 0.75 and not newton:
             radius *= 2.0
         if ec.h < e.h:
@@ -163,6 +185,15 @@ def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 
     S_T = float(sh.sys.switching(nu, np.array([T]))[0])
     dm = sh.u_max * abs(S_T) + e.h * float(nu @ sh.sys.A_x(e.eAx))
     return nuh, e.h, dm, e
+
+
+def _s_norm(sh: Shooting, nuh: np.ndarray, T: float) -> float:
+    """L2 norm of the switching function of ``nuh`` on ``[0, T]`` (trapezoidal rule)."""
+    grid = sample_grid(sh.sys, T)
+    S = sh.sys.switching(nuh / sh.s, grid)
+    wq = np.full(grid.size, grid[1] - grid[0])
+    wq[[0, -1]] *= 0.5
+    return math.sqrt(float(wq @ (S * S)))
 
 
 def polish(sh: Shooting, nuh: np.ndarray, T: float, max_iter: int = 40):
