@@ -19,6 +19,9 @@ from .switching import find_roots, root_tolerance, sample_grid
 
 #: Switch-structure corrections tried before giving up.
 MAX_STRUCTURE_UPDATES = 5
+#: Up to this many switches the Newton system is solved whole (LU with
+#: pivoting: robust when a cluster makes S' tiny); beyond, by elimination.
+DENSE_UP_TO = 200
 
 
 def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
@@ -93,6 +96,8 @@ def _newton_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
     thousands of switches (a weak actuator killing a large vibration) stay cheap.
     """
     rF, rS, ra = r[:n], r[n : n + L], r[-1]
+    if 0 < L <= DENSE_UP_TO:
+        return _dense_step(Gj, fT, D, Gs, anchor, r, n, L)
     scale = float(np.max(np.abs(D))) if L else 1.0
     if L == 0 or np.min(np.abs(D)) > 1e-12 * scale:
         Dinv = 1.0 / D if L else np.zeros(0)
@@ -112,14 +117,21 @@ def _newton_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
         return np.concatenate([dtau, dnu, [dT]])
     if L > 2000:
         return np.zeros(L + n + 1)  # a tangency among thousands of switches: give up
-    J = np.zeros((n + L + 1, L + n + 1))  # a switch with S' = 0: the dense system copes
+    return _dense_step(Gj, fT, D, Gs, anchor, r, n, L)
+
+
+def _dense_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
+    """The same Newton system solved whole (pivoting copes with clustered switches, S' ~ 0)."""
+    J = np.zeros((n + L + 1, L + n + 1))
     J[:n, :L] = Gj.T
     J[:n, -1] = fT
     J[n : n + L, :L] = np.diag(D)
     J[n : n + L, L : L + n] = Gs
     J[-1, L : L + n] = anchor
-    step, *_ = np.linalg.lstsq(J, -r, rcond=None)
-    return step
+    try:
+        return np.linalg.solve(J, -r)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(J, -r, rcond=None)[0]
 
 
 def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0):

@@ -50,6 +50,8 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 
 #: Accept a profile whose relative final-state error is below this.
 FINAL_STATE_RTOL = 1e-9
+#: Smoothing levels (relative to the mean |S|) of the warm-start stage.
+SMOOTHING = (0.05, 0.01, 0.002)
 #: A shifted state whose every entry is below this (state units) is at rest:
 #: no physical move is 1e-100 m, and squares of such numbers underflow.
 AT_REST = 1e-100
@@ -74,18 +76,30 @@ def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float
     The caller certifies whatever comes out.
     """
     T = max(T_init, T_low, 1e-300)
-    # a few cheap steps on T with the smoothed inner problem bring T close
+    # smoothed inner problems (cheap, robust, any structure) with decreasing
+    # smoothing bring T close to the optimum ...
     nuh = None
-    lo, hi = T_low, math.inf
-    for _ in range(4):
-        nuh, m, dm = inner_smooth(sh, T, nuh, 0.05)
-        if abs(math.log(m)) < 0.02 if m > 0.0 else False:
-            break
-        if m < 1.0:
-            lo = max(lo, T)
-        else:
-            hi = min(hi, T)
-        T = next_time(T, m, dm, lo, hi)
+    for eps in SMOOTHING:
+        lo, hi = T_low, math.inf
+        for _ in range(12):
+            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
+            if m > 0.0 and abs(math.log(m)) < 1e-3:
+                break
+            if m < 1.0:
+                lo = max(lo, T)
+            else:
+                hi = min(hi, T)
+            T = next_time(T, m, dm, lo, hi)
+    # ... where the exact inner problem gives the switch structure
+    nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=30, rtol=1e-12)
+    nuh = rescale(sh, nuh, T)
+    found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+    if found is not None:
+        return found
+    # otherwise, from the first guess again: exact inner problems on T, trying
+    # the switch-time Newton whenever m comes markedly closer to 1
+    T = max(T_init, T_low, 1e-300)
+    nuh, _, _ = inner_smooth(sh, T, None, SMOOTHING[0])
     lo, hi = T_low, math.inf
     tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
     for _ in range(60):
