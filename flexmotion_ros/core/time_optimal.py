@@ -51,7 +51,7 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 #: Accept a profile whose relative final-state error is below this.
 FINAL_STATE_RTOL = 1e-9
 #: Smoothing levels (relative to the mean |S|) of the warm-start stage.
-SMOOTHING = (0.05, 0.01, 0.002)
+SMOOTHING = (0.02, 0.002)
 #: A shifted state whose every entry is below this (state units) is at rest:
 #: no physical move is 1e-100 m, and squares of such numbers underflow.
 AT_REST = 1e-100
