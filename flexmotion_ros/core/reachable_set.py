@@ -55,8 +55,29 @@ def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     # (and decays) long before T on a long move
     grid = np.concatenate([np.linspace(0.0, T, 65), np.geomspace(T * 1e-6, T, 61)])
     G = system.input_integral(grid)
-    s = np.abs(x0) + u_max * np.max(np.abs(G), axis=0)
+    s = _free_motion_scale(system, np.asarray(x0, dtype=float), T) + u_max * np.max(np.abs(G), axis=0)
     return np.where(s > 0.0, s, 1.0)
+
+
+def _free_motion_scale(system, x0: np.ndarray, T: float) -> np.ndarray:
+    """How large the initial state alone makes each state over ``[0, T]``.
+
+    A mode's position and velocity share one vibration amplitude (a mode
+    released with speed only still swings), and an initial speed carries the
+    position along; for systems without that structure, ``|x0|``.
+    """
+    out = np.abs(x0).copy()
+    w = getattr(system, "w", None)
+    r = getattr(system, "r", None)
+    if w is None or r is None or out.size != r + 2 * np.size(w):
+        return out
+    if r == 2:
+        out[0] += abs(x0[1]) * T
+    q, qd = x0[r::2], x0[r + 1 :: 2]
+    amp = np.hypot(q, (qd + system.sig * q) / system.wd)
+    out[r::2] = np.maximum(out[r::2], amp)
+    out[r + 1 :: 2] = np.maximum(out[r + 1 :: 2], amp * w)
+    return out
 
 
 class Shooting:

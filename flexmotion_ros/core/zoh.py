@@ -34,6 +34,7 @@ import math
 import time
 
 import numpy as np
+from scipy import sparse
 from scipy.optimize import linprog
 
 from .boundary import MoveProblem
@@ -79,11 +80,11 @@ def _solve_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray)
     A_eq = np.column_stack([G[F].T, c_fix])
     cost = np.zeros(nF + 1)
     cost[-1] = 1.0
-    # -t <= u_f <= t
-    A_ub = np.zeros((2 * nF, nF + 1))
-    A_ub[np.arange(nF), np.arange(nF)] = 1.0
-    A_ub[nF + np.arange(nF), np.arange(nF)] = -1.0
-    A_ub[:, -1] = -1.0
+    # -t <= u_f <= t, sparse: over a full horizon a dense matrix would be O(K^2)
+    rows = np.concatenate([np.arange(2 * nF), np.arange(2 * nF)])
+    cols = np.concatenate([np.arange(nF), np.arange(nF), np.full(2 * nF, nF)])
+    vals = np.concatenate([np.ones(nF), -np.ones(nF), -np.ones(2 * nF)])
+    A_ub = sparse.csr_matrix((vals, (rows, cols)), shape=(2 * nF, nF + 1))
     res = linprog(
         cost,
         A_ub=A_ub,

@@ -1,0 +1,370 @@
+#!/usr/bin/env python3
+"""Planner latency (issue 2): certified time-optimal and 1 kHz ZOH planners vs CasADi/IPOPT.
+
+For chains of n+1 masses (``core.builders.chain``: n = 1, 2, 3, 5, 8 flexible
+modes) and a fixed set of rest-to-rest moves, prints one table:
+
+* continuous certified planner (``plan_time_optimal``): latency median / p95
+  over repeats (wall time of the call, simulation check and certificate
+  included; the expm cache is cleared before every repeat, so each run is
+  cold), relative final-state error by OUR expm simulation
+  (``core.simulation.final_state``), and the optimality proved independently:
+  the smallest ``delta`` for which the certificate's co-state proves, by weak
+  duality and exact expm integrals, that no input reaches the target in
+  ``(1 - delta) T*`` ("T* exact to delta");
+* exact 1 kHz zero-order-hold optimum (``plan_zoh`` after the continuous
+  plan): total latency median / p95, samples, final-state error;
+* a direct method users would otherwise reach for: CasADi + IPOPT, free final
+  time ``T``, piecewise-constant control on ``N`` equal intervals, multiple
+  shooting with the EXACT discretisation (closed-form ``e^{A h}`` and its
+  integral, symbolic in ``h = T / N``), ``|u| <= u_max``, final state = target;
+  initial guess: the rigid-body bang-bang with a 30 % longer time.  Its final
+  time, its IPOPT solve time (NLP construction excluded) and
+  ``T_casadi - T*``.
+
+Usage::
+
+    OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # tiny matrices: threads only hurt
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse
+import itertools
+import math
+import platform
+import time
+
+import numpy as np
+from scipy.linalg import expm
+
+from flexmotion_ros.core import (
+    chain,
+    final_state,
+    plan_time_optimal,
+    plan_zoh,
+    rest_to_rest,
+)
+from flexmotion_ros.core import simulation as _simulation
+
+MODES = (1, 2, 3, 5, 8)
+#: Moves, as the rigid-body minimum time they would take (s); the 5 s one is the ZOH aim.
+RIGID_TIMES = (0.25, 1.0, 5.0)
+U_MAX = 10.0  # N
+RATE = 1000.0  # Hz
+
+
+def beam(n_modes: int):
+    """A lumped flexible link: n+1 masses of 0.5 kg, 400 N/m springs, 0.4 N s/m dampers, force on mass 0."""
+    return chain(
+        [0.5] * (n_modes + 1), [400.0] * n_modes, [0.4] * n_modes, force_on=0
+    ).model
+
+
+def move_for(model, rigid_time: float) -> float:
+    """Distance (m) a rigid body covers in a bang-bang move of ``rigid_time`` seconds."""
+    return abs(model.b0) * U_MAX * rigid_time**2 / 4.0
+
+
+# ----------------------------------------------------------- independent checks
+def relative_final_error(problem, profile) -> float:
+    """Our expm simulation: max over states of |x(T) - target| / (state's excursion)."""
+    u = profile.input()
+    times = np.unique(np.concatenate([u.breaks, np.linspace(0.0, u.duration, 201)]))
+    X = _simulation.simulate(problem.model, problem.x0, u, times=times)
+    target = problem.model.rest_state(problem.target)
+    scale = np.max(np.abs(X - target), axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    xT = final_state(problem.model, problem.x0, u)
+    return float(np.max(np.abs(xT - target) / scale))
+
+
+def proved_delta(
+    problem, profile, deltas=(1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)
+) -> float:
+    """Smallest ``delta`` such that the certificate's co-state proves ``(1 - delta) T*`` infeasible.
+
+    Weak duality: ``nu^T (-e^{A T'} x0) > u_max int_0^T' |nu^T e^{A tau} B| dtau``
+    means no input reaches the target in ``T'``; the integral is exact between
+    the profile's switches (where ``nu^T e^{A tau} B`` changes sign).
+    """
+    A, B = problem.model.A(), problem.model.B()
+    x0 = problem.x0.copy()
+    x0[0] -= problem.target
+    n = A.shape[0]
+    nu = -np.asarray(profile.certificate.costate_final, float)
+    nu = nu / np.max(np.abs(nu))
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n] = A
+    aug[:n, n] = B
+    T = profile.duration
+    tau_sw = np.sort(T - np.asarray(profile.switch_times, float))
+    for d in deltas:
+        Tp = (1.0 - d) * T
+        cuts = np.concatenate([[0.0], tau_sw[tau_sw < Tp], [Tp]])
+        gam = [expm(aug * t)[:n, n] for t in cuts]
+        integral = U_MAX * sum(
+            abs(nu @ (g1 - g0)) for g0, g1 in itertools.pairwise(gam)
+        )
+        gap = float(nu @ (-expm(A * Tp) @ x0)) - integral
+        if gap > 0.0:
+            return d
+    return math.inf
+
+
+# ------------------------------------------------------------------ CasADi
+def exact_discretisation_casadi(model, h):
+    """``Phi(h) = e^{A h}`` and ``Gamma(h) = int_0^h e^{A s} B ds`` in closed form (CasADi SX)."""
+    import casadi as ca
+
+    n = model.n_states
+    Phi = ca.SX.zeros(n, n)
+    Gam = ca.SX.zeros(n, 1)
+    b0, c = model.b0, model.c
+    if c == 0.0:
+        Phi[0, 0], Phi[0, 1], Phi[1, 1] = 1, h, 1
+        Gam[0], Gam[1] = b0 * h * h / 2, b0 * h
+    else:
+        e = ca.exp(c * h)
+        Phi[0, 0], Phi[0, 1], Phi[1, 1] = 1, (e - 1) / c, e
+        Gam[0], Gam[1] = b0 * ((e - 1) / c - h) / c, b0 * (e - 1) / c
+    for i, (w, z, b) in enumerate(zip(model.omega, model.zeta, model.b)):
+        k = 2 + 2 * i
+        s, wd = z * w, w * math.sqrt(1 - z * z)
+        E, C, S = ca.exp(-s * h), ca.cos(wd * h), ca.sin(wd * h)
+        Phi[k, k] = E * (C + s / wd * S)
+        Phi[k, k + 1] = E * S / wd
+        Phi[k + 1, k] = -E * w * w / wd * S
+        Phi[k + 1, k + 1] = E * (C - s / wd * S)
+        Gam[k] = b * (1 - E * (C + s / wd * S)) / (w * w)
+        Gam[k + 1] = b * E * S / wd
+    return Phi, Gam
+
+
+def check_discretisation(model) -> None:
+    """The closed forms equal scipy's expm of the augmented matrix (self-check)."""
+    import casadi as ca
+
+    h = ca.SX.sym("h")
+    Phi, Gam = exact_discretisation_casadi(model, h)
+    f = ca.Function("d", [h], [Phi, Gam])
+    n = model.n_states
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n] = model.A()
+    aug[:n, n] = model.B()
+    for hv in (1e-3, 0.05, 0.7):
+        P, G = (np.array(v) for v in f(hv))
+        E = expm(aug * hv)
+        assert np.allclose(P, E[:n, :n], rtol=1e-10, atol=1e-12) and np.allclose(
+            G.ravel(), E[:n, n], rtol=1e-10, atol=1e-14
+        )
+
+
+def casadi_direct(model, gamma: float, N: int) -> dict:
+    """Free-final-time direct multiple shooting with IPOPT."""
+    import casadi as ca
+
+    n = model.n_states
+    a = abs(model.b0) * U_MAX
+    T_rigid = 2.0 * math.sqrt(abs(gamma) / a)
+    T0 = 1.3 * T_rigid
+    x0 = np.zeros(n)
+    x0[0] = -gamma  # shifted: the target is the origin
+    # initial guess: the rigid bang-bang stretched to T0, simulated exactly
+    s = math.copysign(1.0, gamma * model.b0)
+    u_guess = np.where(np.arange(N) < N / 2, s, -s) * U_MAX * (T_rigid / T0) ** 2
+    aug = np.zeros((n + 1, n + 1))
+    aug[:n, :n] = model.A()
+    aug[:n, n] = model.B()
+    E = expm(aug * T0 / N)
+    xs = [x0]
+    for uk in u_guess:
+        xs.append(E[:n, :n] @ xs[-1] + E[:n, n] * uk)
+    X_guess = np.array(xs).T
+    scale = np.maximum(
+        np.max(np.abs(X_guess), axis=1), 1e-6 * abs(gamma)
+    )  # state scaling
+
+    opti = ca.Opti()
+    T = opti.variable()
+    U = opti.variable(N)
+    Xs = opti.variable(n, N + 1)  # scaled states
+    hs = ca.SX.sym("h")
+    disc = ca.Function("disc", [hs], list(exact_discretisation_casadi(model, hs)))
+    Phi, Gam = disc(T / N)
+    D = ca.diag(ca.DM(scale))
+    Dinv = ca.diag(ca.DM(1.0 / scale))
+    opti.minimize(T)
+    for k in range(N):
+        opti.subject_to(Xs[:, k + 1] == Dinv @ (Phi @ (D @ Xs[:, k]) + Gam * U[k]))
+    opti.subject_to(Xs[:, 0] == x0 / scale)
+    opti.subject_to(Xs[:, N] == 0)
+    opti.subject_to(opti.bounded(-U_MAX, U, U_MAX))
+    opti.subject_to(opti.bounded(0.2 * T_rigid, T, 20.0 * T_rigid))
+    opti.set_initial(T, T0)
+    opti.set_initial(U, u_guess)
+    opti.set_initial(Xs, X_guess / scale[:, None])
+    opti.solver(
+        "ipopt",
+        {"print_time": False},
+        {"print_level": 0, "tol": 1e-10, "max_iter": 3000, "sb": "yes"},
+    )
+    t0 = time.perf_counter()
+    try:
+        sol = opti.solve()
+        ok = True
+    except RuntimeError:
+        sol = opti.debug
+        ok = False
+    wall = time.perf_counter() - t0
+    stats = opti.stats()
+    T_opt = float(sol.value(T))
+    U_opt = np.asarray(sol.value(U), float).ravel()
+    # its final-state error, by our exact simulation of its own input
+    Eh = expm(aug * T_opt / N)
+    x = x0.copy()
+    for uk in U_opt:
+        x = Eh[:n, :n] @ x + Eh[:n, n] * uk
+    return {
+        "T": T_opt,
+        "ok": ok and stats.get("success", False),
+        "status": stats.get("return_status", "?"),
+        "iterations": stats.get("iter_count", -1),
+        "solve_s": float(stats.get("t_wall_total", wall)) if ok else wall,
+        "wall_s": wall,
+        "final_error": float(np.max(np.abs(x) / np.maximum(scale, 1e-300))),
+    }
+
+
+# --------------------------------------------------------------------- main
+def timed(fn, repeats: int):
+    out = []
+    result = None
+    for _ in range(repeats):
+        _simulation._step_cached.cache_clear()  # cold: no matrix exponential reused
+        t0 = time.perf_counter()
+        result = fn()
+        out.append(time.perf_counter() - t0)
+    return np.array(out), result
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=20,
+        help="repeats per move for the latency statistics",
+    )
+    ap.add_argument(
+        "--casadi-n",
+        type=int,
+        default=100,
+        help="control intervals of the direct method",
+    )
+    ap.add_argument("--modes", type=int, nargs="*", default=list(MODES))
+    ap.add_argument("--no-casadi", action="store_true")
+    args = ap.parse_args()
+
+    print(
+        f"# flexmotion planner latency (issue 2): python {platform.python_version()}, numpy {np.__version__}, "
+        f"{os.cpu_count()} CPU(s), load {os.getloadavg()[0]:.1f}"
+    )
+    print(
+        f"# chain of n+1 masses (0.5 kg, 400 N/m, 0.4 N s/m), u_max = {U_MAX} N; "
+        f"moves = rigid-body time {RIGID_TIMES} s; ZOH at {RATE:g} Hz; CasADi N = {args.casadi_n}; "
+        f"{args.repeats} cold repeats"
+    )
+    head = (
+        f"{'modes':>5} {'move m':>8} {'T* s':>10} {'cont med ms':>11} {'p95 ms':>8} {'rel err':>8} {'T* exact':>8} "
+        f"{'ZOH K':>6} {'ZOH med ms':>10} {'p95 ms':>8} {'ZOH err':>8} "
+        f"{'CasADi T s':>11} {'T-T* ms':>9} {'CasADi ms':>9} {'IPOPT':>6}"
+    )
+    print(head)
+    print("-" * len(head))
+    pooled: dict[int, list] = {}
+    pooled_zoh: dict[int, list] = {}
+    aims = {"cont_max_rel_err": 0.0, "worst_delta": 0.0, "zoh_5s": []}
+    for n in args.modes:
+        model = beam(n)
+        if not args.no_casadi:
+            check_discretisation(model)
+        for tr in RIGID_TIMES:
+            gamma = move_for(model, tr)
+            problem = rest_to_rest(model, U_MAX, gamma)
+            plan_time_optimal(problem)  # warm-up (imports, first-call overheads)
+            t_cont, prof = timed(lambda pr=problem: plan_time_optimal(pr), args.repeats)
+            err = relative_final_error(problem, prof)
+            delta = proved_delta(problem, prof) if prof.certified else math.inf
+            reps_zoh = max(3, args.repeats // 4)
+            t_zoh, sp = timed(
+                lambda pr=problem: plan_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh
+            )
+            X = _simulation.simulate_samples(model, problem.x0, sp.commands, sp.dt)
+            dev = X - model.rest_state(gamma)
+            scale = np.where(
+                np.max(np.abs(dev), axis=0) > 0, np.max(np.abs(dev), axis=0), 1.0
+            )
+            zoh_err = float(np.max(np.abs(dev[-1]) / scale))
+            assert np.max(np.abs(sp.commands)) <= U_MAX
+            pooled.setdefault(n, []).extend(t_cont)
+            pooled_zoh.setdefault(n, []).extend(t_zoh)
+            aims["cont_max_rel_err"] = (
+                max(aims["cont_max_rel_err"], err)
+                if n <= 3
+                else aims["cont_max_rel_err"]
+            )
+            if n <= 3:
+                aims["worst_delta"] = max(aims["worst_delta"], delta)
+            if tr == 5.0:
+                aims["zoh_5s"].append((n, float(np.median(t_zoh)), prof.duration))
+            if args.no_casadi:
+                cas = None
+            else:
+                cas = casadi_direct(model, gamma, args.casadi_n)
+            row = (
+                f"{n:>5} {gamma:>8.4g} {prof.duration:>10.6f} {1e3 * np.median(t_cont):>11.2f} "
+                f"{1e3 * np.percentile(t_cont, 95):>8.2f} {err:>8.1e} {delta:>8.0e} "
+                f"{sp.samples:>6d} {1e3 * np.median(t_zoh):>10.1f} {1e3 * np.percentile(t_zoh, 95):>8.1f} {zoh_err:>8.1e} "
+            )
+            if cas is not None:
+                row += (
+                    f"{cas['T']:>11.6f} {1e3 * (cas['T'] - prof.duration):>9.3f} {1e3 * cas['solve_s']:>9.0f} "
+                    f"{'ok' if cas['ok'] else 'FAIL':>6}"
+                )
+            if not prof.certified:
+                row += "  (NOT CERTIFIED)"
+            print(row, flush=True)
+    print("-" * len(head))
+    for n, times in pooled.items():
+        t, z = np.array(times), np.array(pooled_zoh[n])
+        print(
+            f"# {n} mode(s): continuous median {1e3 * np.median(t):.2f} ms, p95 {1e3 * np.percentile(t, 95):.2f} ms; "
+            f"1 kHz ZOH (incl. continuous) median {1e3 * np.median(z):.1f} ms, p95 {1e3 * np.percentile(z, 95):.1f} ms"
+        )
+    small = [x for n in pooled if n <= 3 for x in pooled[n]]
+    if small:
+        med = 1e3 * float(np.median(small))
+        print(
+            f"# aim 1: continuous certified plan < 5 ms median for <= 3 modes: {med:.2f} ms pooled -> "
+            f"{'MET' if med < 5.0 else 'NOT MET'}"
+        )
+        print(
+            f"# aim 2: final time exact to 1e-9 (<= 3 modes): worst proved delta {aims['worst_delta']:.0e}, "
+            f"worst relative final-state error {aims['cont_max_rel_err']:.1e} -> "
+            f"{'MET' if aims['worst_delta'] <= 1e-9 and aims['cont_max_rel_err'] <= 1e-9 else 'NOT MET'}"
+        )
+    for n, med, T in aims["zoh_5s"]:
+        print(
+            f"# aim 3: 1 kHz ZOH plan of the {T:.2f} s move, {n} mode(s): {med * 1e3:.1f} ms median -> "
+            f"{'MET' if med < 0.05 else 'NOT MET'}"
+        )
+
+
+if __name__ == "__main__":
+    main()

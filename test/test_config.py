@@ -1,0 +1,308 @@
+"""Parameter files: round trip, doubles written as doubles, wildcard vs node sections, errors."""
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from flexmotion_ros.core import (
+    FlexmotionError,
+    GoalError,
+    ModalModel,
+    ModelError,
+    chain,
+    crane,
+)
+from flexmotion_ros.core.config import (
+    ConfigError,
+    PlannerConfig,
+    config_from_parameters,
+    dump_parameters,
+    flatten,
+    load_config,
+    read_parameter_file,
+    unflatten,
+    write_config,
+)
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+MODEL = ModalModel(
+    b0=0.5, c=-0.125, omega=(1.4142135623730951, 7.0), zeta=(0.0, 0.03), b=(1.0, -2.0)
+)
+
+
+def write(tmp_path, text: str, name: str = "p.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# ---------------------------------------------------------------- round trip
+def test_write_and_load_round_trip(tmp_path):
+    cfg = PlannerConfig(
+        model=MODEL, u_max=2.0, rate_hz=500.0, position_min=-1.5, position_max=3.0
+    )
+    path = tmp_path / "cfg.yaml"
+    write_config(path, cfg, header="# a header\n")
+    assert path.read_text().startswith("# a header\n/**:\n  ros__parameters:\n")
+    back = load_config(path)
+    assert back.model == cfg.model
+    assert (back.u_max, back.rate_hz, back.method) == (2.0, 500.0, "time_optimal")
+    assert (back.position_min, back.position_max) == (-1.5, 3.0)
+    assert back.options == {}
+
+
+def test_dump_read_config_from_parameters_round_trip_is_exact(tmp_path):
+    params = PlannerConfig(model=MODEL, u_max=0.1, rate_hz=1000.0).to_parameters()
+    del params["limits.position_min"], params["limits.position_max"]
+    path = write(tmp_path, dump_parameters(params))
+    flat = read_parameter_file(path)
+    assert flat == params  # every double exactly (repr round trip), lists as lists
+    assert config_from_parameters(flat).model == MODEL
+
+
+def test_infinite_limits_are_not_written(tmp_path):
+    path = tmp_path / "cfg.yaml"
+    write_config(path, PlannerConfig(model=MODEL))
+    text = path.read_text()
+    assert "limits" not in text and "inf" not in text
+    back = load_config(path)
+    assert back.position_min == -math.inf and back.position_max == math.inf
+
+
+# ------------------------------------------------------ doubles look like doubles
+@pytest.mark.parametrize(
+    "value",
+    [
+        2,
+        2.0,
+        1,
+        0,
+        -3,
+        1e-20,
+        1e20,
+        0.1,
+        1.4142135623730951,
+        1e16,
+        123456789.0,
+        -0.0,
+        5e-324,
+    ],
+)
+def test_doubles_are_written_as_doubles(value):
+    text = dump_parameters({"u_max": value, "model.omega": [value, 3]})
+    body = yaml.safe_load(text)["/**"]["ros__parameters"]
+    # a YAML (and so ROS 2) parser reads a double, not an integer or a string
+    assert type(body["u_max"]) is float and body["u_max"] == float(value)
+    assert all(type(v) is float for v in body["model"]["omega"])
+    assert body["model"]["omega"] == [float(value), 3.0]
+    line = next(ln for ln in text.splitlines() if ln.strip().startswith("u_max:"))
+    literal = line.split(":", 1)[1].strip()
+    assert "." in literal, f"{literal!r} does not look like a double"
+
+
+def test_specific_spellings():
+    text = dump_parameters(
+        {"u_max": 2, "rate_hz": 1000, "model.b0": 1e-20, "model.c": 0}
+    )
+    assert "u_max: 2.0\n" in text
+    assert "rate_hz: 1000.0\n" in text
+    assert re.search(r"\bb0: 1\.0e-20[,}\n]", text)
+    assert re.search(r"\bc: 0\.0[,}\n]", text)
+
+
+def test_integer_and_string_parameters_keep_their_type():
+    text = dump_parameters({"robust_order": 2, "method": "time_optimal", "flag": True})
+    body = yaml.safe_load(text)["/**"]["ros__parameters"]
+    assert body == {"robust_order": 2, "method": "time_optimal", "flag": True}
+    assert type(body["robust_order"]) is int
+
+
+def test_flatten_unflatten():
+    tree = {
+        "model": {"b0": 1.0, "omega": [1.0]},
+        "u_max": 2.0,
+        "limits": {"position_min": -1.0},
+    }
+    flat = flatten(tree)
+    assert flat == {
+        "model.b0": 1.0,
+        "model.omega": [1.0],
+        "u_max": 2.0,
+        "limits.position_min": -1.0,
+    }
+    assert unflatten(flat) == tree
+
+
+# ------------------------------------------------- wildcard vs node sections
+TWO_SECTIONS = """
+/**:
+  ros__parameters:
+    model: {b0: 0.5, omega: [2.0], zeta: [0.0], b: [1.0]}
+    u_max: 1.0
+    rate_hz: 100.0
+flexmotion_planner:
+  ros__parameters:
+    u_max: 3.0
+other_node:
+  ros__parameters:
+    u_max: 9.0
+"""
+
+
+def test_node_section_overrides_the_wildcard(tmp_path):
+    path = write(tmp_path, TWO_SECTIONS)
+    assert read_parameter_file(path)["u_max"] == 1.0
+    assert read_parameter_file(path, "flexmotion_planner")["u_max"] == 3.0
+    assert read_parameter_file(path, "other_node")["u_max"] == 9.0
+    merged = read_parameter_file(path, "flexmotion_planner")
+    assert merged["rate_hz"] == 100.0 and merged["model.omega"] == [2.0]
+    assert load_config(path).u_max == 3.0  # default node name: flexmotion_planner
+    assert load_config(path, node_name=None).u_max == 1.0
+
+
+def test_fully_qualified_node_name_matches_a_plain_section(tmp_path):
+    """ROS 2 matches '/node' and 'node' sections alike for a node in the root namespace."""
+    path = write(tmp_path, TWO_SECTIONS)
+    assert read_parameter_file(path, "/other_node")["u_max"] == 9.0
+
+
+def test_slash_prefixed_node_section(tmp_path):
+    path = write(
+        tmp_path, TWO_SECTIONS.replace("flexmotion_planner:", "/flexmotion_planner:")
+    )
+    assert load_config(path).u_max == 3.0
+
+
+def test_node_section_alone(tmp_path):
+    path = write(tmp_path, "flexmotion_planner:\n  ros__parameters:\n    u_max: 4.0\n")
+    cfg = load_config(path)
+    assert cfg.u_max == 4.0 and cfg.model.n_modes == 0  # defaults fill the rest
+    with pytest.raises(ConfigError) as exc:
+        read_parameter_file(path)
+    assert exc.value.parameter == "config" and "ros__parameters" in exc.value.reason
+
+
+def test_unknown_parameters_go_to_options(tmp_path):
+    path = write(
+        tmp_path,
+        "/**:\n  ros__parameters:\n    robust_order: 2\n    shaper: {kind: zv}\n",
+    )
+    cfg = load_config(path)
+    assert cfg.options == {"robust_order": 2, "shaper.kind": "zv"}
+
+
+# ------------------------------------------------------------------ errors
+def test_missing_file(tmp_path):
+    with pytest.raises(ConfigError) as exc:
+        load_config(tmp_path / "nope.yaml")
+    assert exc.value.parameter == "config"
+    assert "not found" in exc.value.reason and "nope.yaml" in exc.value.reason
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("/**:\n  ros__parameters:\n    u_max: [1.0\n", "not valid YAML"),
+        ("- 1\n- 2\n", "expected a mapping"),
+        ("", "expected a mapping"),
+        ("/**:\n  params:\n    u_max: 1.0\n", "ros__parameters"),
+        ("/**:\n  ros__parameters: 3\n", "ros__parameters"),
+    ],
+)
+def test_bad_files(tmp_path, text, fragment):
+    with pytest.raises(ConfigError) as exc:
+        load_config(write(tmp_path, text))
+    assert exc.value.parameter == "config"
+    assert fragment in exc.value.reason
+    assert "\n" not in str(exc.value), "one line: nodes and the CLI report it verbatim"
+
+
+@pytest.mark.parametrize(
+    "params, parameter, fragment",
+    [
+        ("u_max: -1.0", "u_max", "> 0"),
+        ("u_max: .nan", "u_max", "finite"),
+        ("u_max: abc", "u_max", "finite"),
+        ("rate_hz: 0.0", "rate_hz", "> 0"),
+        ("rate_hz: 2.0e+6", "rate_hz", "1e6"),
+        ("method: warp_drive", "method", "time_optimal"),
+        (
+            "limits: {position_min: 1.0, position_max: -1.0}",
+            "limits.position_min/position_max",
+            "position_min < position_max",
+        ),
+        ("model: {b0: 0.0}", "model.b0", "non-zero"),
+        ("model: {c: 0.5}", "model.c", "<= 0"),
+        ("model: {omega: [1.0], zeta: [1.5], b: [1.0]}", "model.zeta[0]", "[0, 1)"),
+        (
+            "model: {omega: [1.0], zeta: [0.0], b: [0.0]}",
+            "model.b[0]",
+            "uncontrollable",
+        ),
+        ("model: {omega: [-1.0], zeta: [0.0], b: [1.0]}", "model.omega[0]", "> 0"),
+        (
+            "model: {omega: [1.0, 1.0], zeta: [0.0, 0.0], b: [1.0, 1.0]}",
+            "model.omega[1]",
+            "not controllable",
+        ),
+        (
+            "model: {omega: [1.0, 2.0], zeta: [0.0], b: [1.0]}",
+            "model.omega/zeta/b",
+            "same length",
+        ),
+        ("model: {omega: [.inf], zeta: [0.0], b: [1.0]}", "model.omega[0]", "finite"),
+    ],
+)
+def test_bad_values_name_the_parameter(tmp_path, params, parameter, fragment):
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    " + params + "\n")
+    with pytest.raises(FlexmotionError) as exc:
+        load_config(path)
+    assert exc.value.parameter == parameter
+    assert fragment in exc.value.reason
+    assert isinstance(exc.value, (ConfigError, ModelError))
+
+
+def test_check_goal():
+    cfg = PlannerConfig(model=MODEL, position_min=-1.0, position_max=2.0)
+    assert cfg.check_goal(2.0) == 2.0 and cfg.check_goal(-1.0) == -1.0
+    for bad, fragment in (
+        (2.5, "outside the position limits"),
+        (math.nan, "finite"),
+        (math.inf, "finite"),
+        ("x", "finite"),
+    ):
+        with pytest.raises(GoalError) as exc:
+            cfg.check_goal(bad)
+        assert exc.value.parameter == "goal" and fragment in exc.value.reason
+
+
+def test_with_changes_revalidates():
+    cfg = PlannerConfig(model=MODEL)
+    with pytest.raises(FlexmotionError) as exc:
+        cfg.with_changes(u_max=0.0)
+    assert exc.value.parameter == "u_max"
+    assert cfg.with_changes(rate_hz=50.0).rate_hz == 50.0
+
+
+# ------------------------------------------------------- shipped examples
+def test_shipped_examples_load_and_match_their_builders():
+    wb = load_config(CONFIG_DIR / "wie_bernstein.yaml")
+    assert wb.model == ModalModel(
+        b0=0.5, omega=(math.sqrt(2.0),), zeta=(0.0,), b=(1.0,)
+    )
+    assert (wb.u_max, wb.rate_hz) == (1.0, 1000.0)
+    cr = load_config(CONFIG_DIR / "crane.yaml")
+    built = crane(20.0, 5.0, 2.0, 9.81, 0.005).model
+    assert (
+        cr.model.omega == pytest.approx(built.omega, rel=1e-15)
+        and cr.model.b == built.b
+    )
+    assert cr.u_max == 50.0
+    beam = load_config(CONFIG_DIR / "flexible_beam_3mode.yaml")
+    built = chain([0.5] * 4, [400.0] * 3, [0.4] * 3).model
+    assert beam.model.omega == pytest.approx(built.omega, rel=1e-12)
+    assert beam.model.zeta == pytest.approx(built.zeta, rel=1e-12)
+    assert beam.model.b == pytest.approx(built.b, rel=1e-12)
