@@ -81,6 +81,7 @@ _PLANNERS: dict[str, Planner] = {}
 METHOD_MODULES: list[str] = [
     "flexmotion_ros.core.shaping_methods",
     "flexmotion_ros.core.friction_methods",
+    "flexmotion_ros.core.limit_methods",
 ]
 
 

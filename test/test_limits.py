@@ -1,0 +1,323 @@
+"""Fewest samples under velocity, deflection and slew limits, against independent computations.
+
+References: the exact matrix-exponential simulation (``core.simulation``) at
+every sample and on a fine sub-sampling of every interval; a second LP
+formulation (every state a variable, ``scipy.linalg.expm`` step matrices)
+for the feasibility of ``K - 1`` and ``K`` samples.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import linprog
+
+from flexmotion_ros.cli.main import main as cli_main
+from flexmotion_ros.core import (
+    ModalModel,
+    PiecewiseConstant,
+    config_from_parameters,
+    motion_to_rest,
+    plan_zoh,
+    rest_to_rest,
+    simulate,
+    simulate_samples,
+)
+from flexmotion_ros.core.errors import FlexmotionError, GoalError
+from flexmotion_ros.core.limits import Limits, deflection_peaks, plan_limited
+from flexmotion_ros.core.planning import plan_move
+from flexmotion_ros.core.simulation import step_matrices
+
+WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
+TWO = ModalModel(b0=1.0, c=-0.2, omega=[2.0, 5.0], zeta=[0.02, 0.05], b=[0.8, -0.5])
+SUB = 40  # sub-samples per interval for the between-sample check
+
+
+# ------------------------------------------------------------ references
+def feasible_state_space(problem, K, dt, limits, slack=1e-9, sub=1):
+    """Second formulation: every state a variable, expm step matrices; limits loosened by ``slack``.
+
+    Deflection limits at the samples and, with ``sub > 1``, at ``sub - 1`` points
+    inside every interval (still a relaxation of the continuous-time limit).
+    """
+    model = problem.model
+    A, B = model.A(), model.B()
+    n = A.shape[0]
+    Phi, Gam = step_matrices(A, B, dt)
+    inner = [step_matrices(A, B, dt * j / sub) for j in range(1, sub)]
+    x0 = problem.x0
+    xf = model.rest_state(problem.target if problem.target is not None else 0.0)
+    nv = K + n * K  # u_0..u_{K-1}, x_1..x_K
+    Aeq = np.zeros((n * K, nv))
+    beq = np.zeros(n * K)
+    for k in range(K):
+        r = slice(n * k, n * k + n)
+        Aeq[r, K + n * k : K + n * k + n] = np.eye(n)
+        Aeq[r, k] = -Gam
+        if k == 0:
+            beq[r] = Phi @ x0
+        else:
+            Aeq[r, K + n * (k - 1) : K + n * k] = -Phi
+    lo = np.full(nv, -np.inf)
+    hi = np.full(nv, np.inf)
+    lo[:K], hi[:K] = -problem.u_max, problem.u_max
+    loose = 1.0 + slack
+    for k in range(K):
+        base = K + n * k
+        if limits.velocity_max is not None:
+            lo[base + 1], hi[base + 1] = -limits.velocity_max * loose, limits.velocity_max * loose
+        for i, qm in enumerate(limits.deflection_max or ()):
+            if math.isfinite(qm):
+                lo[base + 2 + 2 * i], hi[base + 2 + 2 * i] = -qm * loose, qm * loose
+    final = slice(K + n * (K - 1), K + n * K)
+    lo[final] = hi[final] = xf
+    if problem.target is None:  # position free
+        lo[K + n * (K - 1)], hi[K + n * (K - 1)] = -np.inf, np.inf
+    rows, rhs = [], []
+    if limits.slew_rate is not None:
+        s = limits.slew_rate * dt * loose
+        for k in range(K + 1):  # u_{-1} = u_K = 0
+            r = np.zeros(nv)
+            if k < K:
+                r[k] = 1.0
+            if k > 0:
+                r[k - 1] = -1.0
+            rows += [r, -r]
+            rhs += [s, s]
+    for i, qm in enumerate(limits.deflection_max or ()):
+        if not math.isfinite(qm):
+            continue
+        j = 2 + 2 * i
+        for k in range(K):
+            for Ph, Gm in inner:  # q(k dt + h) = (Ph x_k + Gm u_k)_j
+                r = np.zeros(nv)
+                r[k] = Gm[j]
+                const = 0.0
+                if k == 0:
+                    const = Ph[j] @ x0
+                else:
+                    r[K + n * (k - 1) : K + n * k] = Ph[j]
+                rows += [r, -r]
+                rhs += [qm * loose - const, qm * loose + const]
+    A_ub = np.array(rows) if rows else None
+    b_ub = np.array(rhs) if rows else None
+    res = linprog(np.zeros(nv), A_ub=A_ub, b_ub=b_ub, A_eq=Aeq, b_eq=beq, bounds=list(zip(lo, hi)), method="highs")
+    assert res.status in (0, 2), res.message
+    return res.status == 0
+
+
+def fine_states(problem, commands, dt, sub=SUB):
+    """Exact states on a fine grid inside every sample interval (matrix exponentials)."""
+    u = PiecewiseConstant.from_samples(commands, dt)
+    times = np.linspace(0.0, commands.size * dt, commands.size * sub + 1)
+    return simulate(problem.model, problem.x0, u, times=times)
+
+
+def check_every_limit(problem, result, limits):
+    s = result.sampled
+    dt = s.dt
+    u = s.commands
+    states = simulate_samples(problem.model, problem.x0, u, dt)
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
+    dev = (states[-1] - target)[0 if problem.target is not None else 1 :]
+    assert np.max(np.abs(dev)) <= 1e-9 * max(1.0, abs(problem.target or 0.0))
+    assert np.max(np.abs(u)) <= problem.u_max
+    fine = fine_states(problem, u, dt)
+    if limits.velocity_max is not None:
+        assert np.max(np.abs(states[:, 1])) <= limits.velocity_max
+        assert np.max(np.abs(fine[:, 1])) <= limits.velocity_max * (1 + 1e-12)
+    for i, qm in enumerate(limits.deflection_max or ()):
+        assert np.max(np.abs(states[:, 2 + 2 * i])) <= qm
+        assert np.max(np.abs(fine[:, 2 + 2 * i])) <= qm * (1 + 1e-12)
+    if limits.slew_rate is not None:
+        steps = np.abs(np.diff(np.concatenate([[0.0], u, [0.0]])))
+        assert np.max(steps) <= limits.slew_rate * dt
+
+
+# ------------------------------------------------------------------ cases
+CASES = [
+    ("velocity", rest_to_rest(WB, 1.0, 1.0), Limits(velocity_max=0.35)),
+    ("deflection", rest_to_rest(WB, 1.0, 1.0), Limits(deflection_max=(0.2,))),
+    ("slew", rest_to_rest(WB, 1.0, 1.0), Limits(slew_rate=4.0)),
+    ("all", rest_to_rest(WB, 1.0, 1.0), Limits(0.35, (0.2,), 4.0)),
+    ("two-mode", rest_to_rest(TWO, 2.0, 1.0), Limits(0.6, (0.05, math.inf), 30.0)),
+    ("motion-to-rest", motion_to_rest(TWO, 2.0, 0.9), Limits(None, (0.05, 0.02), 30.0)),
+]
+
+
+@pytest.mark.parametrize("name, problem, limits", CASES, ids=[c[0] for c in CASES])
+def test_limits_hold_everywhere_and_fewest_proved(name, problem, limits):
+    rate = 10.0
+    dt = 1.0 / rate
+    unlimited = plan_zoh(problem, rate)
+    r = plan_limited(problem, rate, limits, unlimited)
+    check_every_limit(problem, r, limits)
+    K = r.sampled.samples
+    assert K >= unlimited.samples and r.added_time_s == pytest.approx((K - unlimited.samples) * dt)
+    assert r.minimal and r.lower_bound_samples == K
+    # independently: K - 1 samples infeasible even at the samples only, K and K + 1 feasible
+    assert not feasible_state_space(problem, K - 1, dt, limits)
+    assert feasible_state_space(problem, K, dt, limits)
+    assert feasible_state_space(problem, K + 1, dt, limits)  # monotone: hold zero one more sample
+
+
+@pytest.mark.parametrize("rate, frac", [(4.0, 0.5), (4.0, 0.7), (5.0, 0.5)])
+def test_deflection_between_samples_coarse_rate(rate, frac):
+    """omega dt ~ 1.5: the deflection peaks between samples; cuts keep it within the limit."""
+    model = ModalModel(b0=1.0, omega=[6.0], zeta=[0.0], b=[1.0])
+    problem = rest_to_rest(model, 1.0, 1.0)
+    unlimited = plan_zoh(problem, rate)
+    limits = Limits(deflection_max=(frac * float(np.max(np.abs(unlimited.states[:, 2]))),))
+    r = plan_limited(problem, rate, limits, unlimited)
+    check_every_limit(problem, r, limits)
+    assert r.cuts > 0  # the sampled-only solution would overshoot between samples
+    assert r.peaks["deflection"][0] > r.peaks["deflection_at_samples"][0]
+    K = r.sampled.samples
+    assert feasible_state_space(problem, K, 1.0 / rate, limits, sub=1)
+    assert not feasible_state_space(problem, r.lower_bound_samples - 1, 1.0 / rate, limits, sub=1) or not (
+        feasible_state_space(problem, r.lower_bound_samples - 1, 1.0 / rate, limits, sub=50)
+    )
+    if r.minimal:  # a finer relaxation of the continuous limit confirms K - 1 is impossible
+        assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits, sub=50)
+
+
+def test_each_limit_costs_time_and_together_at_least_the_worst():
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    rate = 10.0
+    unlimited = plan_zoh(problem, rate)
+    both = Limits(0.35, (0.2,), 4.0)
+    added = {n: plan_limited(problem, rate, both.only(n), unlimited).added_time_s for n in both.active}
+    total = plan_limited(problem, rate, both, unlimited).added_time_s
+    assert all(a > 0.0 for a in added.values())
+    assert total >= max(added.values()) - 1e-12
+
+
+def test_inactive_limits_cost_nothing():
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    unlimited = plan_zoh(problem, 10.0)
+    peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
+    r = plan_limited(problem, 10.0, Limits(velocity_max=2.0 * peak_v, slew_rate=1e6), unlimited)
+    assert r.sampled.samples == unlimited.samples and r.added_time_s == 0.0 and r.minimal
+
+
+def test_deflection_peaks_match_fine_simulation():
+    rng = np.random.default_rng(3)
+    dt = 0.3  # long intervals: several extrema inside some of them
+    for _ in range(5):
+        u = rng.uniform(-1.0, 1.0, 12)
+        x0 = TWO.rest_state()
+        x0[2:] = rng.normal(0.0, 0.1, 4)
+        states = simulate_samples(TWO, x0, u, dt)
+        peak, _ = deflection_peaks(TWO, states, u, dt)
+        problem = type("P", (), {"model": TWO, "x0": x0})
+        fine = fine_states(problem, u, dt, sub=3000).reshape(-1, TWO.n_states)
+        for k in range(u.size):
+            seg = fine[k * 3000 : (k + 1) * 3000 + 1, 2::2]
+            np.testing.assert_allclose(peak[k], np.max(np.abs(seg), axis=0), rtol=1e-6, atol=1e-12)
+            assert np.all(peak[k] >= np.max(np.abs(seg), axis=0) * (1 - 1e-12))
+
+
+# ------------------------------------------------------------ bad input
+@pytest.mark.parametrize(
+    "limits, name",
+    [
+        (Limits(velocity_max=-1.0), "limits.velocity_max"),
+        (Limits(velocity_max=math.nan), "limits.velocity_max"),
+        (Limits(slew_rate=0.0), "limits.slew_rate"),
+        (Limits(deflection_max=(0.1, 0.2)), "limits.deflection_max"),
+        (Limits(deflection_max=(-0.1,)), "limits.deflection_max[0]"),
+    ],
+)
+def test_bad_limits_are_named(limits, name):
+    with pytest.raises(FlexmotionError) as info:
+        plan_limited(rest_to_rest(WB, 1.0, 1.0), 10.0, limits)
+    assert info.value.parameter == name
+    assert "got" in str(info.value)
+
+
+def test_initial_state_outside_limit_is_rejected():
+    with pytest.raises(GoalError, match="velocity_max"):
+        plan_limited(motion_to_rest(WB, 1.0, 0.5), 10.0, Limits(velocity_max=0.3))
+
+
+# ------------------------------------------------------------- properties
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    w=st.floats(1.0, 4.0),
+    z=st.floats(0.0, 0.08),
+    b=st.floats(0.4, 1.2),
+    gamma=st.floats(0.3, 1.5),
+    v_frac=st.floats(0.5, 1.2),
+    q_frac=st.floats(0.4, 1.2),
+    slew=st.one_of(st.none(), st.floats(3.0, 20.0)),
+)
+def test_property_random_models_and_limits(w, z, b, gamma, v_frac, q_frac, slew):
+    model = ModalModel(b0=1.0, omega=[w], zeta=[z], b=[b])
+    problem = rest_to_rest(model, 1.0, gamma)
+    rate = 8.0
+    unlimited = plan_zoh(problem, rate)
+    peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
+    peak_q = float(np.max(np.abs(unlimited.states[:, 2])))
+    limits = Limits(v_frac * peak_v, (q_frac * peak_q,), slew)
+    r = plan_limited(problem, rate, limits, unlimited)
+    check_every_limit(problem, r, limits)
+    # the planner's proofs include its cuts (deflection between samples): check them against a
+    # relaxation of the continuous-time limit with 50 points per interval
+    sub = 50 if r.cuts else 1
+    assert not feasible_state_space(problem, r.lower_bound_samples - 1, 1.0 / rate, limits, sub=sub)
+    if not r.minimal:
+        assert r.lower_bound_samples < r.sampled.samples
+
+
+# --------------------------------------------------------- method and CLI
+def params(**extra):
+    p = {"model.b0": 0.5, "model.omega": [math.sqrt(2.0)], "model.zeta": [0.0], "model.b": [1.0], "u_max": 1.0, "rate_hz": 10.0, "method": "limited"}
+    p.update(extra)
+    return p
+
+
+def test_method_reports_added_time_per_limit():
+    config = config_from_parameters(
+        params(**{"limits.velocity_max": 0.35, "limits.deflection_max": [0.2], "limits.slew_rate": 4.0, "limits.report_each": True})
+    )
+    r = plan_move(config, rest_to_rest(config.model, 1.0, 1.0))  # no rate: the config's
+    assert r.sampled.dt == pytest.approx(0.1) and "config.rate_hz" in r.info["rate_source"]
+    assert set(r.info["added_time_by_limit_s"]) == {"velocity_max", "deflection_max", "slew_rate"}
+    assert r.info["limited_minimal"] and r.summary()["method"] == "limited"
+
+
+@pytest.mark.parametrize(
+    "extra, name",
+    [
+        ({"limits.velocity_max": "fast"}, "limits.velocity_max"),
+        ({"limits.deflection_max": [0.1, 0.1]}, "limits.deflection_max"),
+        ({"limits.velocity": 1.0}, "limits.velocity"),
+        ({"limits.report_each": "yes"}, "limits.report_each"),
+    ],
+)
+def test_method_rejects_bad_options(extra, name):
+    config = config_from_parameters(params(**extra))
+    with pytest.raises(FlexmotionError) as info:
+        plan_move(config, rest_to_rest(config.model, 1.0, 1.0))
+    assert info.value.parameter == name
+
+
+def test_cli_plan_limited(tmp_path, capsys):
+    cfg = tmp_path / "p.yaml"
+    cfg.write_text(
+        "/**:\n  ros__parameters:\n    model: {b0: 0.5, c: 0.0, omega: [1.4142135623730951], zeta: [0.0], b: [1.0]}\n"
+        "    u_max: 1.0\n    rate_hz: 10.0\n    method: limited\n    limits: {velocity_max: 0.35, slew_rate: 4.0}\n"
+    )
+    assert cli_main(["plan", "--config", str(cfg), "--goal", "1.0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "limited" and out["minimal"] and out["added_time_s"] > 0.0
+    assert max(abs(v) for v in out["commands"]) <= 1.0
+    assert cli_main(["plan", "--config", str(cfg), "--goal", "1.0", "--rate", "20"]) == 0
+    assert "proved fewest" in capsys.readouterr().out
+    cfg.write_text(cfg.read_text().replace("velocity_max: 0.35", "velocity_max: -1.0"))
+    assert cli_main(["plan", "--config", str(cfg), "--goal", "1.0"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "limits.velocity_max" in captured.err
