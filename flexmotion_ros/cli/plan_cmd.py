@@ -82,16 +82,34 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _times(values, unit: str = "", limit: int = 12) -> str:
+    """A short list: the first values, then how many more."""
+    values = list(values)
+    text = ", ".join(f"{v:.9f}" if unit else f"{v:+g}" for v in values[:limit]) or "-"
+    if len(values) > limit:
+        text += f", ... ({len(values)} in all)"
+    return text + (f" {unit}" if unit else "")
+
+
 def _text(out: dict) -> str:
-    lines = [
-        f"method            {out['method']}",
-        f"duration          {out['duration']:.9f} s",
-        f"switch times      {', '.join(f'{t:.9f}' for t in out['switch_times']) or '-'} s",
-        f"levels            {', '.join(f'{v:+g}' for v in out['levels'])}",
-        f"final-state error {out['final_state_error']:.3e} (relative {out['final_state_error_relative']:.1e})",
-        f"certified         {out['certified']} ({out['certificate']['message']})",
-        f"solve time        {out['solve_time_s'] * 1e3:.2f} ms",
-    ]
+    """Human-readable summary of :meth:`PlanResult.summary` (any method)."""
+    lines = [f"method            {out['method']}"]
+    if "duration" in out:
+        lines.append(f"duration          {out['duration']:.9f} s")
+    if "switch_times" in out:
+        lines.append(f"switch times      {_times(out['switch_times'], 's')}")
+    if "levels" in out:
+        lines.append(f"levels            {_times(out['levels'])}")
+    if "final_state_error" in out:
+        rel = out.get("final_state_error_relative")
+        lines.append(
+            f"final-state error {out['final_state_error']:.3e}" + (f" (relative {rel:.1e})" if rel is not None else "")
+        )
+    if "certified" in out:
+        message = (out.get("certificate") or {}).get("message", "-")
+        lines.append(f"certified         {out['certified']} ({message})")
+    if "solve_time_s" in out:
+        lines.append(f"solve time        {out['solve_time_s'] * 1e3:.2f} ms")
     if "samples" in out:
         lines += [
             f"rate              {out['rate_hz']:g} Hz",

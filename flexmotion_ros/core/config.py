@@ -280,7 +280,7 @@ def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
 
 
 #: Parameters that are integers, not doubles.
-_INT_PARAMS = {"robust_order", "design.force_on"}
+_INT_PARAMS = {"robust_order", "design.force_on", "fuel_curve.points"}
 
 
 def write_config(path: str | Path, config: PlannerConfig, header: str = "") -> None:
