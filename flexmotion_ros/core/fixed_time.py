@@ -43,12 +43,12 @@ from .profile import BangBangProfile, SampledProfile
 from .simulation import PiecewiseConstant, simulate
 from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
 from .zoh import (
-    _correct,
-    _dual_bound,
-    _finish,
-    _sample_vectors,
-    _solve_lp,
-    _window_mask,
+    correct_exactly,
+    dual_bound,
+    finish_sampled,
+    sample_vectors,
+    solve_peak_lp,
+    window_mask,
     plan_zoh,
 )
 
@@ -315,29 +315,29 @@ def plan_fixed_time_zoh(
     x0 = problem.shifted_initial()
     scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, K * dt, 33))), axis=0)
     scale = np.where(scale > 0.0, scale, 1.0)
-    G = _sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+    G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
     w = -system.expm_x(K * dt, x0) / scale
     nu = -np.asarray(continuous.certificate.costate_final, float) * scale
     S = G @ nu
     signs = np.where(S >= 0.0, 1.0, -1.0)
     width = 4
     while True:
-        free = _window_mask(S, width) if width < K else np.ones(K, dtype=bool)
-        sol = _solve_lp(G, w, signs, free)
+        free = window_mask(S, width) if width < K else np.ones(K, dtype=bool)
+        sol = solve_peak_lp(G, w, signs, free)
         if sol is not None:
             u, t_star, nu_lp = sol
-            if _dual_bound(G, w, nu_lp) >= t_star * (1.0 - 1e-9) or free.all():
+            if dual_bound(G, w, nu_lp) >= t_star * (1.0 - 1e-9) or free.all():
                 break
         elif free.all():
             raise SolverError(f"fixed-time sampled planner: linear program failed at {K} samples")
         width *= 4
     if t_star > um * (1.0 + 1e-12):
         raise SolverError(f"fixed-time sampled planner: {K} samples need peak {t_star:.9g} > u_max = {um}")
-    u_exact = _correct(G, w, u, um)
+    u_exact = correct_exactly(G, w, u, um)
     if u_exact is None:
         raise SolverError("fixed-time sampled planner: exact correction left the bound; nothing is returned")
     cmds = u_exact[::-1].copy()
-    out = _finish(problem, cmds, dt, continuous, False, fewest.samples, t0)
+    out = finish_sampled(problem, cmds, dt, continuous, False, fewest.samples, t0)
     out.method = "fixed_time"
     out.extra.update({"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)})
     return out

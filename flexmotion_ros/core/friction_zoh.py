@@ -143,7 +143,7 @@ def plan_friction_zoh(
         the exact check.
     """
     from .zoh import (
-        _correct,  # the least-norm exact correction of the frictionless planner
+        correct_exactly,  # the least-norm exact correction of the frictionless planner
     )
 
     t0 = time.perf_counter()
@@ -192,7 +192,7 @@ def plan_friction_zoh(
             continue
         u, _t_star, G, w = sol
         # exact final state for this pattern (the friction term is a constant of w)
-        u = _correct(G, w, u, um)
+        u = correct_exactly(G, w, u, um)
         if u is None:
             continue
         states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(K + 1)).states

@@ -53,13 +53,13 @@ LP_RTOL = 1e-6
 MAX_EXTRA_SAMPLES = 200
 
 
-def _sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
+def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
     """``g_m = e^{A m dt} Gamma(dt)`` for ``m = 0..K-1``, shape ``(K, n)``."""
     gam = system.input_integral(np.array([dt]))[0]
     return system.expm_x_many(dt * np.arange(K), gam)
 
 
-def _window_mask(S: np.ndarray, width: int) -> np.ndarray:
+def window_mask(S: np.ndarray, width: int) -> np.ndarray:
     """Samples within ``width`` of a sign change of ``S`` (and the first/last ``width``)."""
     K = S.size
     free = np.zeros(K, dtype=bool)
@@ -71,7 +71,7 @@ def _window_mask(S: np.ndarray, width: int) -> np.ndarray:
     return free
 
 
-def _solve_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
+def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
     """``min t`` with samples outside ``free`` fixed at ``signs * t``.  Returns ``(u, t, nu)`` or None."""
     F = np.flatnonzero(free)
     fixed = ~free
@@ -102,13 +102,13 @@ def _solve_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray)
     return u, t, np.asarray(res.eqlin.marginals, dtype=float)
 
 
-def _dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray) -> float:
+def dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray) -> float:
     """Weak-duality lower bound on the peak command needed (any ``nu``)."""
     denom = float(np.sum(np.abs(G @ nu)))
     return float(nu @ w) / denom if denom > 0.0 else -math.inf
 
 
-def _correct(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float) -> np.ndarray | None:
+def correct_exactly(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float) -> np.ndarray | None:
     """Make ``G^T u = w`` exact (to rounding) with a least-norm change on samples with slack."""
     u = np.clip(u, -u_max, u_max)
     for _ in range(3):
@@ -175,18 +175,18 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
     proved_infeasible_below = K_lo  # every K < K_lo is infeasible (continuous bound)
     K = K_lo
     while K <= K_lo + MAX_EXTRA_SAMPLES:
-        G = _sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+        G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
         w = -system.expm_x(K * dt, x0) / scale
         S = G @ nu if nu is not None else np.ones(K)
         signs = np.where(S >= 0.0, 1.0, -1.0)
         width = 4
         result = None
         while True:
-            free = _window_mask(S, width) if width < K else np.ones(K, dtype=bool)
-            sol = _solve_lp(G, w, signs, free)
+            free = window_mask(S, width) if width < K else np.ones(K, dtype=bool)
+            sol = solve_peak_lp(G, w, signs, free)
             if sol is not None:
                 u, t_star, nu_lp = sol
-                bound = _dual_bound(G, w, nu_lp)
+                bound = dual_bound(G, w, nu_lp)
                 # feasible within the window: feasible, full stop (the exact
                 # correction below decides); infeasible: only a dual bound
                 # above u_max over ALL samples proves it, else widen
@@ -210,10 +210,10 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
             u_in = u * (um / max(t_star, um))
             # a least-norm correction; or, at a degenerate vertex (t* = u_max,
             # every command saturated, nothing to adjust), the LP point itself
-            for cand in (_correct(G, w, u_in, um), np.clip(u_in, -um, um)):
+            for cand in (correct_exactly(G, w, u_in, um), np.clip(u_in, -um, um)):
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
-                    return _finish(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
+                    return finish_sampled(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
@@ -221,7 +221,7 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
     raise SolverError(f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum")
 
 
-def _finish(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:
+def finish_sampled(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:
     states = simulate_samples(problem.model, problem.x0, cmds, dt)
     target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
     dev = states[-1] - target

@@ -58,11 +58,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.srv import GetPlan
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64, Float64MultiArray
@@ -74,6 +73,7 @@ from ..core.config import PlannerConfig
 from ..core.errors import FlexmotionError, GoalError, SolverError
 from ..core.planning import PlanResult, plan_move
 from . import messages
+from .runner import run
 from .parameters import (
     PLANNER_NODE_ONLY,
     declare,
@@ -484,27 +484,7 @@ class PlannerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``ros2 run flexmotion_ros planner [--ros-args --params-file FILE]``."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        try:
-            node = PlannerNode()
-        except FlexmotionError as exc:
-            sys.stderr.write(f"{NODE_NAME}: error: {exc}\n")
-            return 2
-        executor = MultiThreadedExecutor(num_threads=4)
-        executor.add_node(node)
-        try:
-            executor.spin()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            executor.shutdown(timeout_sec=1.0)
-        return 0
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return run(PlannerNode, lambda: MultiThreadedExecutor(num_threads=4), NODE_NAME, args)
 
 
 __all__ = ["DIAGNOSTIC_NAME", "NODE_NAME", "PLANNER_NODE_ONLY", "PlannerNode", "main"]

@@ -41,18 +41,17 @@ from collections import deque
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from ..core.errors import FlexmotionError
 from ..core.simulation import PiecewiseConstant, step_matrices
 from . import messages
+from .runner import run
 from .parameters import (
     PlantConfig,
     declare,
@@ -280,27 +279,8 @@ class PlantNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``ros2 run flexmotion_ros plant [--ros-args --params-file FILE -p lockstep:=true]``."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        try:
-            node = PlantNode()
-        except FlexmotionError as exc:
-            sys.stderr.write(f"{NODE_NAME}: error: {exc}\n")
-            return 2
-        executor = SingleThreadedExecutor()  # the lowest overhead per callback (1 kHz commands + timer)
-        executor.add_node(node)
-        try:
-            executor.spin()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            executor.shutdown(timeout_sec=1.0)
-        return 0
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    # single-threaded: the lowest overhead per callback (1 kHz commands + timer)
+    return run(PlantNode, SingleThreadedExecutor, NODE_NAME, args)
 
 
 if __name__ == "__main__":
