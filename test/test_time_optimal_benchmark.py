@@ -29,7 +29,7 @@ def independent_wb(gamma: float, T0: float, d0: float) -> tuple[float, np.ndarra
         x = final_state(WB, WB.rest_state(), u)
         return [x[0] - gamma, x[2]]
 
-    (T, d) = fsolve(residual, [T0, d0], xtol=1e-15)
+    (T, d) = fsolve(residual, [T0, d0], xtol=1e-13)
     assert np.max(np.abs(residual([T, d]))) < 1e-12
     return T, np.array([T / 2 - d, T / 2, T / 2 + d])
 
