@@ -161,5 +161,33 @@ def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0:
             # sign test says, e.g. in a cluster of switches below rounding)
             signs = sign0 * (1.0 - 2.0 * (np.arange(roots_r.size + 1) % 2))
             return nuh_r, T_r, roots_r, signs, r
-        roots, sign0 = iso_roots, iso_sign0
+        roots, sign0 = _updated_structure(roots_r, sign0, iso_roots, iso_sign0)
     return None
+
+
+def _updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float):
+    """The switch structure to try after a converged but wrong one.
+
+    New sign changes of ``S`` come in pairs (a dip through zero): keep the
+    converged switches and insert each new pair as a *narrow* blip at its
+    middle (a tenth of its width), so that the profile, and with it the
+    final state, barely changes and Newton starts close.  Otherwise (a pair
+    vanished, or no clean pairing) take the zeros as they are.
+    """
+    if zsign0 != sign0 or zeros.size <= roots.size or (zeros.size - roots.size) % 2:
+        return zeros, zsign0
+    k = np.clip(np.searchsorted(roots, zeros), 1, max(roots.size, 1)) - 1
+    near = np.zeros(zeros.size, dtype=bool)
+    if roots.size:
+        d = np.minimum(np.abs(zeros - roots[k]), np.abs(zeros - roots[np.minimum(k + 1, roots.size - 1)]))
+        gaps = np.diff(np.concatenate([[0.0], roots]))
+        near = d <= 1e-3 * max(float(np.min(gaps[gaps > 0.0], initial=1.0)), 1e-12)
+    new = zeros[~near]
+    if new.size != zeros.size - roots.size:
+        return zeros, zsign0
+    idx = np.flatnonzero(~near)
+    if np.any(np.diff(idx)[::2] != 1):  # new zeros are not adjacent pairs
+        return zeros, zsign0
+    a, b = new[::2], new[1::2]
+    mid, half = 0.5 * (a + b), 0.05 * (b - a)
+    return np.sort(np.concatenate([roots, mid - half, mid + half])), sign0
