@@ -258,6 +258,13 @@ class PlantNode(Node):
             self._integrate_events(now)
             return self._state_at(now)
 
+    def last_event(self) -> tuple[float, np.ndarray]:
+        """Real time: the last command applied so far, as (its application time in s since start-up, the state then)."""
+        with self._lock:
+            if not self.cfg.lockstep:
+                self._integrate_events(self._now())
+            return self._t_event * TIME_QUANTUM, self.x_event.copy()
+
     def publish_diagnostics(self) -> None:
         with self._lock:
             values = {

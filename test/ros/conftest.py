@@ -68,7 +68,7 @@ class Probe(Node):
         super().__init__("probe", namespace=NAMESPACE, context=context)
         self.lock = threading.Lock()
         self.joint_states: list[JointState] = []
-        self.commands: list[tuple[float, float]] = []  # (receive time, value)
+        self.commands: list[tuple[float, float, int]] = []  # (receive time s, value, DDS send time ns)
         self.diagnostics: list[DiagnosticArray] = []
         self.trajectories: list[JointTrajectory] = []
         p = "flexmotion_planner/"
@@ -92,9 +92,9 @@ class Probe(Node):
 
         return cb
 
-    def _on_command(self, msg: Float64MultiArray) -> None:
+    def _on_command(self, msg: Float64MultiArray, info: dict) -> None:  # rclpy passes MessageInfo to two-argument callbacks
         with self.lock:
-            self.commands.append((time.monotonic(), messages.command_value(msg)))
+            self.commands.append((time.monotonic(), messages.command_value(msg), int(info["source_timestamp"])))
 
     def states(self) -> np.ndarray:
         """Plant states received so far, one row per joint_states message."""
@@ -104,7 +104,12 @@ class Probe(Node):
 
     def command_values(self) -> np.ndarray:
         with self.lock:
-            return np.array([v for _, v in self.commands])
+            return np.array([v for _, v, _ in self.commands])
+
+    def command_send_times(self) -> np.ndarray:
+        """DDS source timestamps (s, system clock) of the commands received so far."""
+        with self.lock:
+            return np.array([t for _, _, t in self.commands], dtype=float) * 1e-9
 
     def planner_status(self) -> tuple[int, str, dict[str, str]] | None:
         with self.lock:

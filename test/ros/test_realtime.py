@@ -7,7 +7,7 @@ import time
 import numpy as np
 from std_msgs.msg import Float64
 
-from flexmotion_ros.core.simulation import modal_amplitudes
+from flexmotion_ros.core.simulation import PiecewiseConstant, final_state, modal_amplitudes
 from flexmotion_ros.nodes import messages
 
 from .conftest import FAST, wait_for
@@ -17,25 +17,41 @@ from .conftest import FAST, wait_for
 WB = {"model.b0": 0.5, "model.omega": [2**0.5], "model.zeta": [0.0], "model.b": [1.0], "u_max": 1.0, "rate_hz": 100.0}
 
 
-def test_real_time_plant_reaches_target_with_small_residual(ros):
-    # SCHED_FIFO where permitted: the test machine is shared and loaded
+def test_real_time_plant_holds_each_command_from_its_send_time(ros):
+    """The real-time plant integrates exactly what was sent, when it was sent.
+
+    On a loaded machine the stream's timing jitters (CI has seen a 27 ms
+    period at 100 Hz), so the residual of a wall-clock move depends on the
+    load.  What must not depend on it: with ``plant.apply_at: send`` the plant
+    state equals the exact replay of the received commands, each held from its
+    DDS send time to the next one's; and the replay of the same commands on
+    the ideal 10 ms grid is the planned move, at rest at the target.
+    """
     planner = ros.planner(**WB, stream_priority=50)
-    plant = ros.plant(**WB, lockstep=False, command_timeout=0.5)
+    plant = ros.plant(**WB, lockstep=False, command_timeout=0.5, **{"plant.apply_at": "send"})
     ros.connected(planner)
     ros.probe.goal_pub.publish(Float64(data=0.5))
     wait_for(lambda: len(planner.installed) == 1, 10.0, "the plan")
-    wait_for(lambda: planner.stream.idle, 15.0, "the end of the stream")
-    time.sleep(0.1)
-    x = plant.state()
     seg = planner.installed[0]
-    timing = {k: v for k, v in planner.status()[2].items() if "stream" in k}
-    # each command is held from its DDS arrival to the next one's: the stream's
-    # jitter and the transport's make the residual small, not zero
-    assert abs(x[0] - 0.5) < 1e-2, (x, timing)
-    assert abs(x[1]) < 1e-2, (x, timing)
-    assert np.all(modal_amplitudes(plant.cfg.model, x) < 1e-2), (x, timing)
+    n = seg.samples + 1  # the samples, then the explicit zero hold that ends the move
+    wait_for(lambda: plant.received >= n and len(ros.probe.commands) >= n, 20.0, "all commands")
+    u = ros.probe.command_values()
+    np.testing.assert_array_equal(u, np.append(seg.commands, 0.0))
+    sent = ros.probe.command_send_times()
+    assert np.all(np.diff(sent) >= 0.0)
+    t_last, x_last = plant.last_event()
+    model = plant.cfg.model
+    # the plant's event times are on a 1 us grid: a few us of hold error at the
+    # switches, ~1e-6 of state; the load-induced errors this guards against were 1e-2..0.4
+    replay = final_state(model, np.zeros(model.n_states), PiecewiseConstant(sent - sent[0], u[:-1]))
+    np.testing.assert_allclose(x_last, replay, rtol=0, atol=2e-5)
+    ideal = final_state(model, np.zeros(model.n_states), PiecewiseConstant(np.arange(n) * 0.01, u[:-1]))
+    assert abs(ideal[0] - 0.5) < 1e-9 and np.all(modal_amplitudes(model, ideal) < 1e-9) and abs(ideal[1]) < 1e-9
+    jitter = np.max(np.abs((sent - sent[0]) - np.arange(n) * 0.01))
+    print(f"stream timing error max {jitter * 1e3:.2f} ms; final state {x_last}")
     # the plant published on its own clock throughout, at about rate_hz
-    assert len(ros.probe.joint_states) > 0.7 * seg.samples, (len(ros.probe.joint_states), seg.samples)
+    time.sleep(0.1)
+    assert len(ros.probe.joint_states) > 0.5 * seg.samples, (len(ros.probe.joint_states), seg.samples)
 
 
 def test_real_time_plant_holds_the_command_then_times_out(ros):
