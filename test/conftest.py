@@ -12,7 +12,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 # Hypothesis: random exploration locally; in CI (.ci/run sets the profile) a
 # fixed, reproducible set of examples, so that main stays green for a reason.
-from hypothesis import settings  # noqa: E402
+from hypothesis import settings
 
 settings.register_profile("ci", derandomize=True, print_blob=True)
 settings.load_profile(os.environ.get("FLEXMOTION_HYPOTHESIS_PROFILE", "default"))

@@ -16,7 +16,13 @@ from .config import PlannerConfig, config_from_parameters, load_config, write_co
 from .errors import FlexmotionError, GoalError, ModelError, SolverError
 from .model import ModalModel
 from .profile import BangBangProfile, SampledProfile
-from .simulation import PiecewiseConstant, final_state, modal_amplitudes, simulate, simulate_samples
+from .simulation import (
+    PiecewiseConstant,
+    final_state,
+    modal_amplitudes,
+    simulate,
+    simulate_samples,
+)
 from .time_optimal import plan_time_optimal
 from .zoh import plan_zoh
 

@@ -112,4 +112,4 @@ def _finite_goal(name: str, value: float) -> float:
     return x
 
 
-__all__ = ["MoveProblem", "rest_to_rest", "motion_to_rest", "state_to_rest", "GoalError", "ModelError"]
+__all__ = ["GoalError", "ModelError", "MoveProblem", "motion_to_rest", "rest_to_rest", "state_to_rest"]

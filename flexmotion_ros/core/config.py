@@ -22,9 +22,10 @@ parameters through :func:`config_from_parameters` too, so both validate alike.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import yaml
 
@@ -135,7 +136,7 @@ class PlannerConfig:
             )
         return t
 
-    def with_changes(self, **changes: Any) -> "PlannerConfig":
+    def with_changes(self, **changes: Any) -> PlannerConfig:
         """A validated copy with some fields replaced."""
         return replace(self, **changes)
 

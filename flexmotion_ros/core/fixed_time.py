@@ -46,10 +46,10 @@ from .zoh import (
     correct_exactly,
     dual_bound,
     finish_sampled,
+    plan_zoh,
     sample_vectors,
     solve_peak_lp,
     window_mask,
-    plan_zoh,
 )
 
 #: Requests within this relative distance of ``T*`` are the time-optimal move itself.

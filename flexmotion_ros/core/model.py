@@ -12,8 +12,8 @@ State order: ``[p, v, q_1, q_1', ..., q_N, q_N']``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
@@ -184,7 +184,7 @@ class ModalModel:
         x[0] = position
         return x
 
-    def with_changes(self, **changes: object) -> "ModalModel":
+    def with_changes(self, **changes: object) -> ModalModel:
         """A copy with some parameters replaced (validated again)."""
         params = dict(b0=self.b0, c=self.c, omega=self.omega, zeta=self.zeta, b=self.b, names=self.names)
         params.update(changes)

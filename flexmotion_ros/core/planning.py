@@ -11,8 +11,9 @@ line only ever call :func:`plan_move`, so a new method appears in both.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 

@@ -47,12 +47,12 @@ class PiecewiseConstant:
         object.__setattr__(self, "levels", lv)
 
     @classmethod
-    def from_switches(cls, switch_times, levels, duration: float) -> "PiecewiseConstant":
+    def from_switches(cls, switch_times, levels, duration: float) -> PiecewiseConstant:
         """From interior switch times (s), the level on each interval and the duration (s)."""
         return cls(np.concatenate([[0.0], np.asarray(switch_times, float), [duration]]), levels)
 
     @classmethod
-    def from_samples(cls, samples, dt: float) -> "PiecewiseConstant":
+    def from_samples(cls, samples, dt: float) -> PiecewiseConstant:
         """A zero-order-hold sequence: ``samples[k]`` held on ``[k dt, (k+1) dt)``."""
         samples = np.asarray(samples, dtype=float)
         return cls(dt * np.arange(samples.size + 1), samples)

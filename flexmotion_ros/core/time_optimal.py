@@ -41,7 +41,17 @@ from .certificate import Certificate, certify
 from .errors import SolverError
 from .modal_response import ModalResponse
 from .profile import BangBangProfile
-from .reachable_set import POLISH_TOL, Shooting, inner_exact, inner_smooth, next_time, outer_newton, polish, rescale, state_scale
+from .reachable_set import (
+    POLISH_TOL,
+    Shooting,
+    inner_exact,
+    inner_smooth,
+    next_time,
+    outer_newton,
+    polish,
+    rescale,
+    state_scale,
+)
 from .rigid_body import rigid_profile, rigid_time
 from .simulation import PiecewiseConstant, simulate
 from .switch_newton import structure_newton

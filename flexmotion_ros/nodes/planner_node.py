@@ -73,7 +73,6 @@ from ..core.config import PlannerConfig
 from ..core.errors import FlexmotionError, GoalError, SolverError
 from ..core.planning import PlanResult, plan_move
 from . import messages
-from .runner import run
 from .parameters import (
     PLANNER_NODE_ONLY,
     declare,
@@ -83,6 +82,7 @@ from .parameters import (
     planner_specs,
     validating_callback,
 )
+from .runner import run
 from .streaming import CommandStream, Segment
 
 NODE_NAME = "flexmotion_planner"

@@ -51,7 +51,6 @@ from std_msgs.msg import Float64MultiArray
 
 from ..core.simulation import PiecewiseConstant, step_matrices
 from . import messages
-from .runner import run
 from .parameters import (
     PlantConfig,
     declare,
@@ -61,6 +60,7 @@ from .parameters import (
     plant_specs,
     validating_callback,
 )
+from .runner import run
 
 NODE_NAME = "flexmotion_plant"
 DIAGNOSTIC_NAME = "flexmotion_plant: simulation"

@@ -7,7 +7,11 @@ import time
 import numpy as np
 from std_msgs.msg import Float64
 
-from flexmotion_ros.core.simulation import PiecewiseConstant, final_state, modal_amplitudes
+from flexmotion_ros.core.simulation import (
+    PiecewiseConstant,
+    final_state,
+    modal_amplitudes,
+)
 from flexmotion_ros.nodes import messages
 
 from .conftest import FAST, wait_for
@@ -39,7 +43,7 @@ def test_real_time_plant_holds_each_command_from_its_send_time(ros):
     np.testing.assert_array_equal(u, np.append(seg.commands, 0.0))
     sent = ros.probe.command_send_times()
     assert np.all(np.diff(sent) >= 0.0)
-    t_last, x_last = plant.last_event()
+    _, x_last = plant.last_event()
     model = plant.cfg.model
     # the plant's event times are on a 1 us grid: a few us of hold error at the
     # switches, ~1e-6 of state; the load-induced errors this guards against were 1e-2..0.4
