@@ -48,12 +48,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from flexmotion_ros.core import ModalModel, plan_time_optimal, plan_zoh, rest_to_rest
-from flexmotion_ros.core.limits import Limits, plan_limited
-from flexmotion_ros.core.min_fuel import (
-    fuel_time_curve,
-    plan_min_fuel,
-    plan_min_fuel_zoh,
-)
+from flexmotion_ros.core.fuel_curve import fuel_time_curve
+from flexmotion_ros.core.fuel_lp import plan_min_fuel_zoh
+from flexmotion_ros.core.limit_checks import Limits
+from flexmotion_ros.core.limits import plan_limited
+from flexmotion_ros.core.min_fuel import plan_min_fuel
 
 
 def timed(f, *a, **k):

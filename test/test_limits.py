@@ -27,7 +27,8 @@ from flexmotion_ros.core import (
     simulate_samples,
 )
 from flexmotion_ros.core.errors import FlexmotionError, GoalError
-from flexmotion_ros.core.limits import Limits, deflection_peaks, plan_limited
+from flexmotion_ros.core.limit_checks import Limits, deflection_peaks
+from flexmotion_ros.core.limits import plan_limited
 from flexmotion_ros.core.planning import plan_move
 from flexmotion_ros.core.simulation import step_matrices
 

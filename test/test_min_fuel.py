@@ -31,12 +31,9 @@ from flexmotion_ros.core import (
 )
 from flexmotion_ros.core.config import ConfigError
 from flexmotion_ros.core.errors import GoalError, SolverError
-from flexmotion_ros.core.min_fuel import (
-    fuel_time_curve,
-    plan_min_fuel,
-    plan_min_fuel_zoh,
-    sampled_fuel_curve,
-)
+from flexmotion_ros.core.fuel_curve import fuel_time_curve, sampled_fuel_curve
+from flexmotion_ros.core.fuel_lp import plan_min_fuel_zoh
+from flexmotion_ros.core.min_fuel import plan_min_fuel
 from flexmotion_ros.core.planning import plan_move
 from flexmotion_ros.core.simulation import step_matrices
 

@@ -36,14 +36,11 @@ import numpy as np
 from .boundary import MoveProblem
 from .config import ConfigError, PlannerConfig
 from .errors import SolverError
-from .limits import Limits, plan_limited
-from .min_fuel import (
-    FuelProfile,
-    fuel_time_curve,
-    plan_min_fuel,
-    plan_min_fuel_zoh,
-    sampled_fuel_curve,
-)
+from .fuel_curve import fuel_time_curve, sampled_fuel_curve
+from .fuel_lp import plan_min_fuel_zoh
+from .limit_checks import Limits
+from .limits import plan_limited
+from .min_fuel import FuelProfile, plan_min_fuel
 from .planning import PlanResult, register_method
 from .profile import SampledProfile
 from .simulation import PiecewiseConstant

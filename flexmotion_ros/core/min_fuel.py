@@ -1,13 +1,12 @@
-"""Minimum-fuel moves for a given move time, and the fuel/time trade-off (seed eq. 2.38).
+"""Continuous-time minimum-fuel moves for a given move time (seed eq. 2.38).
 
 Fuel is ``J = int_0^T |u(t)| dt`` (N s).  For a final time ``T >= T*`` (the
 time-optimal time) Pontryagin's principle gives the *bang-off-bang* input
 ``u = -u_max dez(B^T lambda)``: full force where ``|B^T lambda| > 1``, zero
 where it is below 1.
 
-Continuous time (time-to-go ``tau = T - t``, ``S(tau) = nu^T e^{A tau} B``)
--------------------------------------------------------------------------
-The problem ``min int |u|  s.t.  int_0^T e^{A tau} B u dtau = w := -e^{AT} x0,
+Time-to-go ``tau = T - t``, ``S(tau) = nu^T e^{A tau} B``: the problem
+``min int |u|  s.t.  int_0^T e^{A tau} B u dtau = w := -e^{AT} x0,
 |u| <= u_max`` has the concave dual::
 
     d(nu) = nu^T w - u_max int_0^T (|S(tau)| - 1)_+ dtau
@@ -16,33 +15,14 @@ whose maximiser gives the input ``u = u_max sgn(S) [|S| > 1]``.  ``grad d``
 is the final-state miss and ``-hess d = u_max sum_j g_j g_j^T / |S'(tau_j)|``
 over the crossings of ``|S| = 1`` (``g = e^{A tau} B``), so a damped Newton
 method converges from any start; it starts from the dual of the sampled
-linear program below.  Every crossing is isolated *with proof*
+linear program (:mod:`.fuel_lp`).  Every crossing is isolated *with proof*
 (:func:`~flexmotion_ros.core.switching.isolate_roots` applied to ``S -+ 1``),
 so the levels are the exact pointwise minimiser of the Lagrangian for the
 final ``nu``; with the exact arrival checked by matrix-exponential
 simulation, weak duality (``J(u) >= d(nu)`` for *every* admissible ``u``)
 certifies optimality: the gap ``J - d(nu)`` is reported.
 
-Sampled (zero-order hold at ``dt``)
------------------------------------
-``min dt sum_k |u_k|  s.t.  sum_m g_m u_m = w_K, |u_m| <= u_max`` with
-``g_m = e^{A m dt} Gamma(dt)`` is a linear program: its optimum is exact for
-the sampled problem.  Only samples near the crossings of ``|nu^T g_m| = dt``
-are free variables (the others are fixed at ``0`` or ``+-u_max`` from a
-guess of ``nu``); the window solution is accepted only if the duality gap
-against the *full* problem's dual ``d_K(nu) = nu^T w - u_max sum_m
-(|nu^T g_m| - dt)_+`` closes, else the windows grow.
-
-The trade-off curve
--------------------
-With the target at rest, a move that arrives early can hold zero (no fuel)
-until any later time, so the minimum fuel ``J(T)`` is non-increasing in
-``T``.  Its end points: ``J(T*) = u_max T*`` (at ``T*`` the bang-bang input
-is the only admissible one) and ``J(T_max)`` = the minimum fuel with the
-arrival time *free* in ``[T*, T_max]`` (monotonicity puts that optimum at
-``T_max``).  As ``T_max -> inf`` it tends to the fuel of the unconstrained
-time problem (for a rigid body with ``c = 0``: zero for rest-to-rest, the
-momentum ``|v0 / b0|`` to stop a moving one).
+The fuel/time trade-off curve is in :mod:`.fuel_curve`.
 """
 
 from __future__ import annotations
@@ -52,249 +32,15 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linprog
 
 from .boundary import MoveProblem
-from .errors import GoalError, SolverError
+from .errors import SolverError
+from .fuel_lp import T_STAR_RTOL, check_move_time, min_fuel_lp, state_scale
 from .modal_response import ModalResponse
-from .model import check_positive
-from .profile import BangBangProfile, SampledProfile
-from .simulation import PiecewiseConstant, simulate, simulate_samples
+from .profile import BangBangProfile
+from .simulation import PiecewiseConstant, simulate
 from .switching import isolate_roots
 from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
-
-#: Accept a window LP when its duality gap on the full problem is below this (relative to the fuel).
-LP_GAP_RTOL = 1e-9
-#: HiGHS tolerances: the LP solutions are corrected to an exact arrival afterwards.
-HIGHS_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
-#: Move times within this (relative) of ``T*`` are the time-optimal move.
-T_STAR_RTOL = 1e-9
-MAX_SAMPLES = 5_000_000
-
-
-# --------------------------------------------------------------------- helpers
-def state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
-    """How large each (shifted) state gets during a move of length ``T`` (for scaling)."""
-    s = np.abs(x0) + u_max * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
-    return np.where(s > 0.0, s, 1.0)
-
-
-def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
-    """``g_m = e^{A m dt} Gamma(dt)`` for ``m = 0..K-1`` samples to go, shape ``(K, n)``."""
-    gam = system.input_integral(np.array([dt]))[0]
-    return system.expm_x_many(dt * np.arange(K), gam)
-
-
-def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.ndarray) -> np.ndarray:
-    """Least-norm change of ``u[movable]`` that makes ``G^T u = w`` exact (to rounding).
-
-    The LP solution misses ``w`` by its feasibility tolerance; the change is
-    of that size, so it does not disturb the constraints' margins.
-    """
-    u = u.copy()
-    idx = np.flatnonzero(movable)
-    if idx.size < G.shape[1]:
-        return u
-    for _ in range(3):
-        r = w - G.T @ u
-        du, *_ = np.linalg.lstsq(G[idx].T, r, rcond=None)
-        u[idx] += du
-    return u
-
-
-def verified_samples(
-    problem: MoveProblem,
-    commands: np.ndarray,
-    dt: float,
-    method: str,
-    minimal: bool,
-    lower_bound_samples: int,
-    continuous=None,
-    extra: dict | None = None,
-    t0: float | None = None,
-) -> SampledProfile:
-    """A :class:`SampledProfile` after the exact (matrix-exponential) final-state and bound checks.
-
-    Raises
-    ------
-    SolverError
-        If the sequence misses the target (relative error above
-        ``FINAL_STATE_RTOL``) or exceeds ``u_max``: nothing is returned.
-    """
-    commands = np.asarray(commands, dtype=float)
-    states = simulate_samples(problem.model, problem.x0, commands, dt)
-    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
-    dev = states[-1] - target
-    centred = states - target
-    if problem.target is None:
-        dev, centred = dev[1:], centred[:, 1:]
-    scale = np.max(np.abs(centred), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
-    err = float(np.max(np.abs(dev))) if dev.size else 0.0
-    rel = float(np.max(np.abs(dev) / scale)) if dev.size else 0.0
-    peak = float(np.max(np.abs(commands))) if commands.size else 0.0
-    if not rel <= FINAL_STATE_RTOL:
-        raise SolverError(f"{method}: sampled sequence misses the target (relative final-state error {rel:.3e}); nothing is returned")
-    if peak > problem.u_max:
-        raise SolverError(f"{method}: sampled command {peak} exceeds u_max = {problem.u_max}; nothing is returned")
-    return SampledProfile(
-        problem=problem,
-        commands=commands,
-        dt=dt,
-        states=states,
-        final_state_error=err,
-        final_state_error_relative=rel,
-        minimal=minimal,
-        lower_bound_samples=int(lower_bound_samples),
-        continuous=continuous,
-        solve_time_s=(time.perf_counter() - t0) if t0 is not None else 0.0,
-        method=method,
-        extra=dict(extra or {}),
-    )
-
-
-def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
-    """``dt sum |u_k|`` (N s)."""
-    return float(dt * np.sum(np.abs(commands)))
-
-
-def _check_move_time(move_time: float, T_star: float) -> float:
-    T = float(move_time)
-    if not math.isfinite(T) or T < T_star * (1.0 - T_STAR_RTOL):
-        raise GoalError("move_time", f"must be a finite time >= the time-optimal {T_star:.9g} s, got {move_time}")
-    return max(T, T_star)
-
-
-# ---------------------------------------------------------- sampled (the LP)
-@dataclass
-class _LPResult:
-    u: np.ndarray  # samples to go
-    fuel: float
-    bound: float  # full-problem dual bound d_K(nu)
-    nu: np.ndarray
-    free: int
-
-
-def _dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray, dt: float, um: float) -> float:
-    """``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+``: a lower bound on the fuel (any nu)."""
-    return float(nu @ w - um * np.sum(np.maximum(np.abs(G @ nu) - dt, 0.0)))
-
-
-def _levels_from(G: np.ndarray, nu: np.ndarray, dt: float) -> np.ndarray:
-    s = (G @ nu) / dt
-    return np.where(s > 1.0, 1.0, np.where(s < -1.0, -1.0, 0.0))
-
-
-def _window(levels: np.ndarray, width: int) -> np.ndarray:
-    K = levels.size
-    free = np.zeros(K, dtype=bool)
-    for c in np.flatnonzero(levels[1:] != levels[:-1]):
-        free[max(0, c - width + 1) : min(K, c + width + 1)] = True
-    free[:width] = True
-    free[K - width :] = True
-    return free
-
-
-def _solve_fuel_lp(G, w, dt, um, scale, levels, free) -> _LPResult | None:
-    """``min fuel`` with samples outside ``free`` fixed at ``levels * u_max``; None if infeasible."""
-    F = np.flatnonzero(free)
-    nF = F.size
-    fixed = ~free
-    Gs = G / scale
-    rhs = w / scale - um * (Gs[fixed].T @ levels[fixed])
-    # u_f = u_max (p - q), 0 <= p, q <= 1
-    A_eq = um * np.hstack([Gs[F].T, -Gs[F].T])
-    res = linprog(np.ones(2 * nF), A_eq=A_eq, b_eq=rhs, bounds=(0.0, 1.0), method="highs", options=HIGHS_OPTIONS)
-    if res.status != 0:
-        return None
-    u = um * levels.astype(float)
-    u[F] = um * (res.x[:nF] - res.x[nF:])
-    nu = dt * um * np.asarray(res.eqlin.marginals, dtype=float) / scale  # d fuel / d w
-    return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
-
-
-def min_fuel_lp(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float, nu_guess: np.ndarray | None = None) -> _LPResult | None:
-    """Exact minimum-fuel ZOH sequence with ``K`` samples (samples-to-go order), None if infeasible.
-
-    With ``nu_guess`` only windows around its level changes are free; the
-    window solution is accepted when its full-problem duality gap closes.
-    """
-    G = sample_vectors(system, K, dt)
-    w = -system.expm_x(K * dt, x0)
-    scale = state_scale(system, x0, um, K * dt)
-    result = None
-    if nu_guess is not None:
-        levels = _levels_from(G, nu_guess, dt)
-        width = 4
-        while 2 * width < K:
-            free = _window(levels, width)
-            sol = _solve_fuel_lp(G, w, dt, um, scale, levels, free)
-            if sol is not None and sol.fuel - sol.bound <= LP_GAP_RTOL * max(sol.fuel, um * dt):
-                result = sol
-                break
-            if sol is not None:  # the window's dual is a better guess of nu
-                levels = _levels_from(G, sol.nu, dt)
-            width *= 4
-    if result is None:
-        result = _solve_fuel_lp(G, w, dt, um, scale, np.zeros(K), np.ones(K, dtype=bool))
-        if result is None:
-            return None
-    # exact arrival: move samples strictly inside the bound (fractional ones first: fuel unchanged to rounding)
-    u = result.u
-    inner = np.abs(u) < um * (1.0 - 1e-9)
-    frac = inner & (np.abs(u) > um * 1e-9)
-    u = correct_arrival(G / scale, w / scale, u, frac if frac.sum() >= G.shape[1] else inner)
-    u = np.clip(u, -um, um)
-    result.u = u
-    result.fuel = fuel_of_samples(u, dt)
-    return result
-
-
-def plan_min_fuel_zoh(
-    problem: MoveProblem,
-    rate_hz: float,
-    move_time: float,
-    time_optimal: BangBangProfile | None = None,
-    nu_guess: np.ndarray | None = None,
-    continuous=None,
-) -> SampledProfile:
-    """Minimum-fuel zero-order-hold sequence at ``rate_hz`` arriving at rest after ``ceil(move_time * rate_hz)`` samples.
-
-    If fewer samples than the sampled time-optimum would be needed (a
-    ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
-
-    Returns
-    -------
-    SampledProfile
-        ``method = "min_fuel"``; ``extra`` holds ``fuel`` (N s), ``fuel_lower_bound``
-        (weak-duality bound: the gap proves optimality) and ``lp_free_samples``.
-    """
-    t0 = time.perf_counter()
-    rate = check_positive("rate_hz", rate_hz, "Hz")
-    dt = 1.0 / rate
-    if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
-    T = _check_move_time(move_time, time_optimal.duration)
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
-    um = problem.u_max
-    if not np.any(x0):
-        return verified_samples(problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0)
-    K = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
-    if K > MAX_SAMPLES:
-        raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate")
-    K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
-    sol = None
-    K_stop = max(K, K_lo) + 400
-    while sol is None and K <= K_stop:
-        sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
-        if sol is None:
-            K += 1  # within a sample or so of T*: the ZOH needs a few more samples
-    if sol is None:
-        raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
-    cmds = sol.u[::-1].copy()
-    extra = {"fuel": sol.fuel, "fuel_lower_bound": sol.bound, "lp_free_samples": sol.free, "costate": sol.nu.tolist()}
-    return verified_samples(problem, cmds, dt, "min_fuel", False, K_lo, continuous, extra, t0)
 
 
 # ------------------------------------------------------- continuous (Newton)
@@ -477,7 +223,7 @@ def plan_min_fuel(
     t0 = time.perf_counter()
     if time_optimal is None:
         time_optimal = plan_time_optimal(problem)
-    T = _check_move_time(move_time, time_optimal.duration)
+    T = check_move_time(move_time, time_optimal.duration)
     x0 = problem.shifted_initial()
     if not np.any(x0) or T <= time_optimal.duration * (1.0 + T_STAR_RTOL):
         return _time_optimal_as_fuel(problem, time_optimal, t0)
@@ -580,124 +326,3 @@ def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProf
         iterations=iterations,
         solve_time_s=time.perf_counter() - t0,
     )
-
-
-# ------------------------------------------------------------ trade-off curve
-@dataclass
-class FuelCurve:
-    """Minimum fuel versus move time.
-
-    Attributes
-    ----------
-    move_times : ndarray
-        ``T`` (s), from ``T*`` to ``T_max``.
-    fuel : ndarray
-        Continuous-time minimum fuel ``J(T)`` (N s); ``fuel[0] = u_max T*``.
-    sampled_move_times, sampled_fuel : ndarray or None
-        The same for the ZOH problem at ``rate_hz`` (``K dt``, exact LP optimum).
-    time_optimal_time : float
-        ``T*`` (s).
-    """
-
-    move_times: np.ndarray
-    fuel: np.ndarray
-    time_optimal_time: float
-    sampled_move_times: np.ndarray | None = None
-    sampled_fuel: np.ndarray | None = None
-    profiles: list = field(default_factory=list, repr=False)
-
-    def to_dict(self) -> dict:
-        out = {
-            "time_optimal_time": float(self.time_optimal_time),
-            "move_times": [float(t) for t in self.move_times],
-            "fuel": [float(f) for f in self.fuel],
-        }
-        if self.sampled_fuel is not None:
-            out["sampled_move_times"] = [float(t) for t in self.sampled_move_times]
-            out["sampled_fuel"] = [float(f) for f in self.sampled_fuel]
-        return out
-
-
-def fuel_time_curve(
-    problem: MoveProblem,
-    longest_time: float,
-    points: int = 9,
-    rate_hz: float | None = None,
-    time_optimal: BangBangProfile | None = None,
-) -> FuelCurve:
-    """The fuel/time trade-off between ``T*`` and ``longest_time`` (equally spaced move times).
-
-    With ``rate_hz`` also the exact sampled curve at the same times (rounded up
-    to whole samples).
-
-    Raises
-    ------
-    SolverError
-        A point without a continuous bang-off-bang solution (singular arc):
-        use the sampled curve (:func:`sampled_fuel_curve`).
-    """
-    if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
-    T_star = time_optimal.duration
-    T_max = _check_move_time(longest_time, T_star)
-    if not isinstance(points, (int, np.integer)) or points < 2:
-        raise GoalError("points", f"must be an integer >= 2, got {points}")
-    times = T_star + (T_max - T_star) * np.linspace(0.0, 1.0, points)
-    fuel, profiles = [], []
-    for T in times:
-        # each point starts from its own coarse LP: more robust than continuation in T (the
-        # pulse structure changes along the curve), and about as fast
-        p = plan_min_fuel(problem, T, time_optimal)
-        fuel.append(p.fuel)
-        profiles.append(p)
-    curve = FuelCurve(times, np.array(fuel), T_star, profiles=profiles)
-    if rate_hz is not None:
-        dt = 1.0 / check_positive("rate_hz", rate_hz, "Hz")
-        s_times, s_fuel = [], []
-        for T, p in zip(times, profiles):
-            sp = plan_min_fuel_zoh(problem, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate)
-            s_times.append(sp.duration)
-            s_fuel.append(sp.extra["fuel"])
-        curve.sampled_move_times = np.array(s_times)
-        curve.sampled_fuel = np.array(s_fuel)
-        del dt
-    return curve
-
-
-def sampled_fuel_curve(
-    problem: MoveProblem,
-    rate_hz: float,
-    longest_time: float,
-    points: int = 9,
-    time_optimal: BangBangProfile | None = None,
-) -> FuelCurve:
-    """The exact sampled trade-off: minimum ZOH fuel for sample counts from the fewest to ``longest_time``.
-
-    The first point is the fewest samples that arrive at all (the sampled
-    time optimum, :func:`~flexmotion_ros.core.zoh.plan_zoh`); ``move_times``
-    are ``K dt``.  ``fuel`` holds the sampled fuel (there is no continuous curve).
-    """
-    from .zoh import plan_zoh
-
-    rate = check_positive("rate_hz", rate_hz, "Hz")
-    dt = 1.0 / rate
-    if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
-    T_max = _check_move_time(longest_time, time_optimal.duration)
-    if not isinstance(points, (int, np.integer)) or points < 2:
-        raise GoalError("points", f"must be an integer >= 2, got {points}")
-    K_lo = plan_zoh(problem, rate, time_optimal).samples
-    K_hi = max(K_lo, math.floor(T_max / dt * (1.0 + 1e-12)))
-    Ks = np.unique(np.round(np.linspace(K_lo, K_hi, points)).astype(int))
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
-    fuel = []
-    nu = None
-    for K in Ks:
-        sol = min_fuel_lp(system, x0, problem.u_max, int(K), dt, nu)
-        if sol is None:
-            raise SolverError(f"min_fuel: {K} samples infeasible although the sampled time optimum needs {K_lo}")
-        fuel.append(sol.fuel)
-        nu = sol.nu  # windows from the neighbour: accepted only if the full duality gap closes
-    times = Ks * dt
-    return FuelCurve(times, np.array(fuel), time_optimal.duration, times, np.array(fuel))

@@ -1,0 +1,270 @@
+"""The sampled minimum-fuel linear program (zero-order hold at ``dt``), and the sampled-move helpers.
+
+Fuel is ``J = dt sum_k |u_k|`` (N s).  With ``g_m = e^{A m dt} Gamma(dt)``
+(``m`` samples to go)
+
+``min dt sum_k |u_k|  s.t.  sum_m g_m u_m = w_K := -e^{A K dt} x0, |u_m| <= u_max``
+
+is a linear program: its optimum is exact for the sampled problem.  Only
+samples near the crossings of ``|nu^T g_m| = dt`` are free variables (the
+others are fixed at ``0`` or ``+-u_max`` from a guess of ``nu``); the window
+solution is accepted only if the duality gap against the *full* problem's
+dual ``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+`` closes, else the
+windows grow.  The continuous-time problem is in :mod:`.min_fuel`.
+
+The helpers (sample vectors, exact arrival correction, the verified
+:class:`SampledProfile`) serve every sampled planner of this kind
+(:mod:`.limits` too).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+
+from .boundary import MoveProblem
+from .errors import GoalError, SolverError
+from .modal_response import ModalResponse
+from .model import check_positive
+from .profile import BangBangProfile, SampledProfile
+from .simulation import simulate_samples
+from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
+
+#: Accept a window LP when its duality gap on the full problem is below this (relative to the fuel).
+LP_GAP_RTOL = 1e-9
+#: HiGHS tolerances: the LP solutions are corrected to an exact arrival afterwards.
+HIGHS_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+#: Move times within this (relative) of ``T*`` are the time-optimal move.
+T_STAR_RTOL = 1e-9
+MAX_SAMPLES = 5_000_000
+
+
+# --------------------------------------------------------------------- helpers
+def state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
+    """How large each (shifted) state gets during a move of length ``T`` (for scaling)."""
+    s = np.abs(x0) + u_max * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
+    return np.where(s > 0.0, s, 1.0)
+
+
+def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
+    """``g_m = e^{A m dt} Gamma(dt)`` for ``m = 0..K-1`` samples to go, shape ``(K, n)``."""
+    gam = system.input_integral(np.array([dt]))[0]
+    return system.expm_x_many(dt * np.arange(K), gam)
+
+
+def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.ndarray) -> np.ndarray:
+    """Least-norm change of ``u[movable]`` that makes ``G^T u = w`` exact (to rounding).
+
+    The LP solution misses ``w`` by its feasibility tolerance; the change is
+    of that size, so it does not disturb the constraints' margins.
+    """
+    u = u.copy()
+    idx = np.flatnonzero(movable)
+    if idx.size < G.shape[1]:
+        return u
+    for _ in range(3):
+        r = w - G.T @ u
+        du, *_ = np.linalg.lstsq(G[idx].T, r, rcond=None)
+        u[idx] += du
+    return u
+
+
+def verified_samples(
+    problem: MoveProblem,
+    commands: np.ndarray,
+    dt: float,
+    method: str,
+    minimal: bool,
+    lower_bound_samples: int,
+    continuous=None,
+    extra: dict | None = None,
+    t0: float | None = None,
+) -> SampledProfile:
+    """A :class:`SampledProfile` after the exact (matrix-exponential) final-state and bound checks.
+
+    Raises
+    ------
+    SolverError
+        If the sequence misses the target (relative error above
+        ``FINAL_STATE_RTOL``) or exceeds ``u_max``: nothing is returned.
+    """
+    commands = np.asarray(commands, dtype=float)
+    states = simulate_samples(problem.model, problem.x0, commands, dt)
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
+    dev = states[-1] - target
+    centred = states - target
+    if problem.target is None:
+        dev, centred = dev[1:], centred[:, 1:]
+    scale = np.max(np.abs(centred), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    err = float(np.max(np.abs(dev))) if dev.size else 0.0
+    rel = float(np.max(np.abs(dev) / scale)) if dev.size else 0.0
+    peak = float(np.max(np.abs(commands))) if commands.size else 0.0
+    if not rel <= FINAL_STATE_RTOL:
+        raise SolverError(f"{method}: sampled sequence misses the target (relative final-state error {rel:.3e}); nothing is returned")
+    if peak > problem.u_max:
+        raise SolverError(f"{method}: sampled command {peak} exceeds u_max = {problem.u_max}; nothing is returned")
+    return SampledProfile(
+        problem=problem,
+        commands=commands,
+        dt=dt,
+        states=states,
+        final_state_error=err,
+        final_state_error_relative=rel,
+        minimal=minimal,
+        lower_bound_samples=int(lower_bound_samples),
+        continuous=continuous,
+        solve_time_s=(time.perf_counter() - t0) if t0 is not None else 0.0,
+        method=method,
+        extra=dict(extra or {}),
+    )
+
+
+def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
+    """``dt sum |u_k|`` (N s)."""
+    return float(dt * np.sum(np.abs(commands)))
+
+
+
+def check_move_time(move_time: float, T_star: float) -> float:
+    """``move_time`` (s) checked against ``T*``; a value within ``T_STAR_RTOL`` below it is ``T*``."""
+    T = float(move_time)
+    if not math.isfinite(T) or T < T_star * (1.0 - T_STAR_RTOL):
+        raise GoalError("move_time", f"must be a finite time >= the time-optimal {T_star:.9g} s, got {move_time}")
+    return max(T, T_star)
+
+
+# ---------------------------------------------------------- sampled (the LP)
+@dataclass
+class _LPResult:
+    u: np.ndarray  # samples to go
+    fuel: float
+    bound: float  # full-problem dual bound d_K(nu)
+    nu: np.ndarray
+    free: int
+
+
+def _dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray, dt: float, um: float) -> float:
+    """``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+``: a lower bound on the fuel (any nu)."""
+    return float(nu @ w - um * np.sum(np.maximum(np.abs(G @ nu) - dt, 0.0)))
+
+
+def _levels_from(G: np.ndarray, nu: np.ndarray, dt: float) -> np.ndarray:
+    s = (G @ nu) / dt
+    return np.where(s > 1.0, 1.0, np.where(s < -1.0, -1.0, 0.0))
+
+
+def _window(levels: np.ndarray, width: int) -> np.ndarray:
+    K = levels.size
+    free = np.zeros(K, dtype=bool)
+    for c in np.flatnonzero(levels[1:] != levels[:-1]):
+        free[max(0, c - width + 1) : min(K, c + width + 1)] = True
+    free[:width] = True
+    free[K - width :] = True
+    return free
+
+
+def _solve_fuel_lp(G, w, dt, um, scale, levels, free) -> _LPResult | None:
+    """``min fuel`` with samples outside ``free`` fixed at ``levels * u_max``; None if infeasible."""
+    F = np.flatnonzero(free)
+    nF = F.size
+    fixed = ~free
+    Gs = G / scale
+    rhs = w / scale - um * (Gs[fixed].T @ levels[fixed])
+    # u_f = u_max (p - q), 0 <= p, q <= 1
+    A_eq = um * np.hstack([Gs[F].T, -Gs[F].T])
+    res = linprog(np.ones(2 * nF), A_eq=A_eq, b_eq=rhs, bounds=(0.0, 1.0), method="highs", options=HIGHS_OPTIONS)
+    if res.status != 0:
+        return None
+    u = um * levels.astype(float)
+    u[F] = um * (res.x[:nF] - res.x[nF:])
+    nu = dt * um * np.asarray(res.eqlin.marginals, dtype=float) / scale  # d fuel / d w
+    return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
+
+
+def min_fuel_lp(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float, nu_guess: np.ndarray | None = None) -> _LPResult | None:
+    """Exact minimum-fuel ZOH sequence with ``K`` samples (samples-to-go order), None if infeasible.
+
+    With ``nu_guess`` only windows around its level changes are free; the
+    window solution is accepted when its full-problem duality gap closes.
+    """
+    G = sample_vectors(system, K, dt)
+    w = -system.expm_x(K * dt, x0)
+    scale = state_scale(system, x0, um, K * dt)
+    result = None
+    if nu_guess is not None:
+        levels = _levels_from(G, nu_guess, dt)
+        width = 4
+        while 2 * width < K:
+            free = _window(levels, width)
+            sol = _solve_fuel_lp(G, w, dt, um, scale, levels, free)
+            if sol is not None and sol.fuel - sol.bound <= LP_GAP_RTOL * max(sol.fuel, um * dt):
+                result = sol
+                break
+            if sol is not None:  # the window's dual is a better guess of nu
+                levels = _levels_from(G, sol.nu, dt)
+            width *= 4
+    if result is None:
+        result = _solve_fuel_lp(G, w, dt, um, scale, np.zeros(K), np.ones(K, dtype=bool))
+        if result is None:
+            return None
+    # exact arrival: move samples strictly inside the bound (fractional ones first: fuel unchanged to rounding)
+    u = result.u
+    inner = np.abs(u) < um * (1.0 - 1e-9)
+    frac = inner & (np.abs(u) > um * 1e-9)
+    u = correct_arrival(G / scale, w / scale, u, frac if frac.sum() >= G.shape[1] else inner)
+    u = np.clip(u, -um, um)
+    result.u = u
+    result.fuel = fuel_of_samples(u, dt)
+    return result
+
+
+def plan_min_fuel_zoh(
+    problem: MoveProblem,
+    rate_hz: float,
+    move_time: float,
+    time_optimal: BangBangProfile | None = None,
+    nu_guess: np.ndarray | None = None,
+    continuous=None,
+) -> SampledProfile:
+    """Minimum-fuel zero-order-hold sequence at ``rate_hz`` arriving at rest after ``ceil(move_time * rate_hz)`` samples.
+
+    If fewer samples than the sampled time-optimum would be needed (a
+    ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
+
+    Returns
+    -------
+    SampledProfile
+        ``method = "min_fuel"``; ``extra`` holds ``fuel`` (N s), ``fuel_lower_bound``
+        (weak-duality bound: the gap proves optimality) and ``lp_free_samples``.
+    """
+    t0 = time.perf_counter()
+    rate = check_positive("rate_hz", rate_hz, "Hz")
+    dt = 1.0 / rate
+    if time_optimal is None:
+        time_optimal = plan_time_optimal(problem)
+    T = check_move_time(move_time, time_optimal.duration)
+    system = ModalResponse(problem.model, problem.include_position)
+    x0 = problem.shifted_initial()
+    um = problem.u_max
+    if not np.any(x0):
+        return verified_samples(problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0)
+    K = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
+    if K > MAX_SAMPLES:
+        raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate")
+    K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
+    sol = None
+    K_stop = max(K, K_lo) + 400
+    while sol is None and K <= K_stop:
+        sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
+        if sol is None:
+            K += 1  # within a sample or so of T*: the ZOH needs a few more samples
+    if sol is None:
+        raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
+    cmds = sol.u[::-1].copy()
+    extra = {"fuel": sol.fuel, "fuel_lower_bound": sol.bound, "lp_free_samples": sol.free, "costate": sol.nu.tolist()}
+    return verified_samples(problem, cmds, dt, "min_fuel", False, K_lo, continuous, extra, t0)
