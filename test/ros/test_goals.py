@@ -149,11 +149,13 @@ def test_hold_stream_while_idle_is_a_parameter_and_never_drifts(ros):
     # absolute deadlines: the offset of sample k from k / rate does not grow (a
     # sleep(dt) loop would drift by its per-sample overhead, ~40 ms over 400 samples)
     t = np.array(planner.stream.sent_times)[-400:]
+    # (the least-late of 50 samples: load only ever adds lateness, a drift moves the floor)
     offset = t - t[0] - np.arange(t.size) / FAST["rate_hz"]
-    assert abs(np.median(offset[-50:]) - np.median(offset[:50])) < 5e-3, offset
-    # switched off live: the stream falls silent
+    assert abs(np.min(offset[-50:]) - np.min(offset[:50])) < 5e-3, offset
+    # switched off live: the stream falls silent (counted at the sender: on a loaded
+    # machine the probe may still be draining its queue for a while)
     assert planner.set_parameters([Parameter("publish_hold_when_idle", value=False)])[0].successful
     time.sleep(0.2)
-    n = len(ros.probe.commands)
+    n = planner.stream.samples_sent
     time.sleep(0.3)
-    assert len(ros.probe.commands) == n
+    assert planner.stream.samples_sent == n
