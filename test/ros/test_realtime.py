@@ -51,8 +51,15 @@ def test_real_time_plant_holds_each_command_from_its_send_time(ros):
     np.testing.assert_allclose(x_last, replay, rtol=0, atol=2e-5)
     ideal = final_state(model, np.zeros(model.n_states), PiecewiseConstant(np.arange(n) * 0.01, u[:-1]))
     assert abs(ideal[0] - 0.5) < 1e-9 and np.all(modal_amplitudes(model, ideal) < 1e-9) and abs(ideal[1]) < 1e-9
-    jitter = np.max(np.abs((sent - sent[0]) - np.arange(n) * 0.01))
-    print(f"stream timing error max {jitter * 1e3:.2f} ms; final state {x_last}")
+    # the move itself: the residual is small, and no larger than the stream's timing explains.
+    # A level change du_k sent e_k late moves the final velocity by b0 du_k e_k and the
+    # mode's amplitude by at most |b du_k| e_k / omega (first order, exact for c = zeta = 0).
+    e = np.abs((sent - sent[0]) - np.arange(n) * 0.01)
+    du = np.abs(np.diff(np.concatenate([[0.0], u])))
+    amp = modal_amplitudes(model, x_last)
+    print(f"stream timing error median {np.median(e) * 1e3:.2f} ms, max {e.max() * 1e3:.2f} ms; v {x_last[1]:.2e}, mode amplitude {amp[0]:.2e}")
+    assert abs(x_last[1]) <= 0.5 * float(du @ e) + 1e-4, (x_last, e.max())
+    assert amp[0] <= float(du @ e) / 2**0.5 + 1e-4, (x_last, e.max())
     # the plant published on its own clock throughout, at about rate_hz
     time.sleep(0.1)
     assert len(ros.probe.joint_states) > 0.5 * seg.samples, (len(ros.probe.joint_states), seg.samples)
