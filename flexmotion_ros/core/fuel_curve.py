@@ -96,7 +96,7 @@ def fuel_time_curve(
         profiles.append(p)
     curve = FuelCurve(times, np.array(fuel), T_star, profiles=profiles)
     if rate_hz is not None:
-        dt = 1.0 / check_positive("rate_hz", rate_hz, "Hz")
+        check_positive("rate_hz", rate_hz, "Hz")
         s_times, s_fuel = [], []
         for T, p in zip(times, profiles):
             sp = plan_min_fuel_zoh(problem, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate)
@@ -104,7 +104,6 @@ def fuel_time_curve(
             s_fuel.append(sp.extra["fuel"])
         curve.sampled_move_times = np.array(s_times)
         curve.sampled_fuel = np.array(s_fuel)
-        del dt
     return curve
 
 

@@ -12,9 +12,9 @@ solution is accepted only if the duality gap against the *full* problem's
 dual ``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+`` closes, else the
 windows grow.  The continuous-time problem is in :mod:`.min_fuel`.
 
-The helpers (sample vectors, exact arrival correction, the verified
-:class:`SampledProfile`) serve every sampled planner of this kind
-(:mod:`.limits` too).
+The helpers (state scale, exact arrival correction, the verified
+:class:`SampledProfile`) serve the limited planner too (:mod:`.limit_lp`,
+:mod:`.limits`); the sample vectors are :func:`.zoh.sample_vectors`.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from .model import check_positive
 from .profile import BangBangProfile, SampledProfile
 from .simulation import simulate_samples
 from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
+from .zoh import sample_vectors
 
 #: Accept a window LP when its duality gap on the full problem is below this (relative to the fuel).
 LP_GAP_RTOL = 1e-9
@@ -48,12 +49,6 @@ def state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -
     """How large each (shifted) state gets during a move of length ``T`` (for scaling)."""
     s = np.abs(x0) + u_max * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
     return np.where(s > 0.0, s, 1.0)
-
-
-def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
-    """``g_m = e^{A m dt} Gamma(dt)`` for ``m = 0..K-1`` samples to go, shape ``(K, n)``."""
-    gam = system.input_integral(np.array([dt]))[0]
-    return system.expm_x_many(dt * np.arange(K), gam)
 
 
 def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.ndarray) -> np.ndarray:

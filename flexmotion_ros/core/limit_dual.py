@@ -98,7 +98,6 @@ def proves_infeasible(bound: float) -> bool:
 # ------------------------------------------------------------------- lifting
 #: A row (or command) within this (relative to ``t``) of its limit counts as active in :func:`lift`.
 ACTIVE_RTOL = 1e-7
-DROP_DEAD = True
 #: Weight of the pull towards the window LP's multipliers (only felt where the system leaves freedom).
 REGULARISATION = 1e-6
 LIFT_ROUNDS = 4
@@ -114,10 +113,11 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
     ``c_m = 0`` on every interior sample and ``lambda_j = 0`` on every
     inactive row.  They solve a sparse linear system: the adjoint recursion
     ``psi_{m-1} = Phi^T psi_m + pi_m(lambda)``, ``psi_{K-1} = -nu``,
-    ``c_m = u_max Gamma^T psi_m + direct_m(lambda)``, plus a normalisation
-    ``sum lambda - sum_bound sgn(v_m) c_m = 1``: one sparse LU of the
-    (regularised) least-squares system, ``O(n K)``.  Negative multipliers are
-    dropped; :func:`dual_bound` then decides what the result proves.
+    ``c_m = u_max Gamma^T psi_m + direct_m(lambda)``, with one component of
+    ``psi_{K-1}`` fixed from the window's ``nu`` (the scale): a sparse LU of
+    the (regularised) least-squares system, ``O(n K)``, repeated up to
+    :data:`LIFT_ROUNDS` times with negative multipliers pinned to zero.
+    :func:`dual_bound` then decides what the result proves.
     """
     K, um, t = sol.K, lp.um, sol.t
     kd = lp.kdata(K)
@@ -129,13 +129,11 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
     # active rows: (kind, k, index, sign), cut offsets, coefficient vector on psi-sources, direct terms
     rows, svals = [], []
     # rows of the window LP with a zero multiplier stay zero (a degenerate vertex has active rows it does not need)
-    dead = set()
-    if DROP_DEAD:
-        lp_rows: dict = {}
-        for (kind, k, idx, _), lam_ in zip(sol.rows, sol.lam):
-            key = (int(kind), int(k), int(idx))
-            lp_rows[key] = max(lp_rows.get(key, 0.0), lam_)
-        dead = {key for key, val in lp_rows.items() if val == 0.0}
+    lp_rows: dict = {}
+    for (kind, k, idx, _), lam_ in zip(sol.rows, sol.lam):
+        key = (int(kind), int(k), int(idx))
+        lp_rows[key] = max(lp_rows.get(key, 0.0), lam_)
+    dead = {key for key, val in lp_rows.items() if val == 0.0}
     for b, x in zip(lp.blocks, lp.block_states(K, sol.u)):
         ks = np.flatnonzero(np.abs(x[1:K]) >= thr) + 1
         ks = np.array([k for k in ks if (STATE, k, b.idx[0]) not in dead], int)

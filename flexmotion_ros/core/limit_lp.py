@@ -9,14 +9,24 @@ of linear constraints (scipy HiGHS).  The limits are
 Normalised form
 ---------------
 Commands ``v_m = u_m / u_max``; every limit row is written ``a^T v + d <= t``
-(a state or a step divided by its limit, each side separately).  Two uses:
+(a state or a step divided by its limit, each side separately).  Three uses:
 
 * ``scaled``: ``min t`` with ``|v_m| <= t`` as well.  ``t*(K) <= 1`` iff ``K``
   samples meet every limit; ``t*`` is non-increasing in ``K`` (hold zero one
-  sample longer) and the LP is always feasible, so no solve has to detect
-  infeasibility.  Its dual gives the weak-duality bound of :mod:`.limit_dual`.
+  sample longer).  With every sample free the LP is feasible whenever the
+  sampled system can reach the target in ``K`` samples; a window LP (runs
+  sharing a level) may not be, and then says so (None).  Its dual gives the
+  weak-duality bound of :mod:`.limit_dual`.
+* ``feasible``: the limits scaled by a fixed ``t``, no objective: the
+  last-resort infeasibility proof of :mod:`.limits` (HiGHS's verdict; an
+  interior-point "infeasible" is confirmed by the simplex method within
+  ``CONFIRM_TIME_S``: on large, barely infeasible LPs the simplex method
+  can stall for minutes, and then the interior-point verdict stands alone,
+  as the proof records).
 * ``smooth`` (the accepted solve): ``t`` fixed at ``1 - MARGIN``,
-  ``|v_m| <= 1``, minimum total variation ``sum |u_k - u_{k-1}|``, and each
+  ``|v_m| <= 1``, minimum total variation ``sum |u_k - u_{k-1}|`` (where a
+  deflection limit is set or no slew limit: under a slew limit alone any
+  vertex is smooth enough), and each
   limited deflection also kept within its limit at the middle of every free
   sample interval: a bare feasible vertex chatters at the sample rate where a
   state rides its limit, and a chattering deflection overshoots between
@@ -65,6 +75,8 @@ ROW_RTOL = 1e-9
 MAX_ROW_ROUNDS = 10
 #: Above this many free samples (with state chains) the interior-point method beats the simplex.
 IPM_SAMPLES = 300
+#: Time the simplex method gets to confirm an interior-point "infeasible" verdict (s).
+CONFIRM_TIME_S = 2.0
 #: Row kinds in :class:`LPSolution`.
 STATE, CUT, SLEW = 0, 1, 2
 
@@ -172,6 +184,8 @@ class LimitLP:
         self.slew = limits.slew_rate * dt / self.um if limits.slew_rate is not None else None
         self.cuts: list[Cut] = []
         self.solves = 0
+        self.infeasible_verdicts = 0  # LPs HiGHS found infeasible
+        self.infeasible_method = ""  # the HiGHS method that gave the last such verdict
         self._kd: dict[int, _KData] = {}
         self._rows: dict[int, list[set]] = {}  # generated rows inside runs, per K and block
         self._at_cache: dict = {}
@@ -220,8 +234,9 @@ class LimitLP:
 
         Returns None when the LP has no solution (``smooth``: the limits
         cannot be met with this parametrisation; ``scaled``: the runs and
-        free samples cannot reach the target).  Rows inside runs are added
-        until the solution meets every limit at every sample.
+        free samples cannot reach the target), or when the rows inside runs,
+        added until the solution meets every limit at every sample, did not
+        settle within ``MAX_ROW_ROUNDS``.
         """
         seg = seg if seg is not None else Segments.all_free(K)
         rows = self._rows.setdefault(K, [set() for _ in self.blocks])
@@ -230,7 +245,9 @@ class LimitLP:
             sol = self._solve_once(K, seg, mode, rows, t_fix)
             if sol is None or not self._add_violated_rows(sol, rows):
                 return sol
-        return sol
+        # rows inside runs still violated: not a restriction of the full problem
+        # (its t is no upper bound); the callers fall back to every sample free
+        return None
 
     def _solve_once(self, K, seg, mode, extra, t_fix=None) -> LPSolution | None:
         self.solves += 1
@@ -433,7 +450,17 @@ class LimitLP:
         res = linprog(cost, method=method, **kw)
         if res.status not in (0, 2) and method != "highs":  # the interior-point method gave up: simplex
             res = linprog(cost, method="highs", **kw)
+        verdict = "dual simplex" if method == "highs" else "interior point"
+        if res.status == 2 and method != "highs":
+            # "infeasible" decides proofs: confirmed by the simplex method, within a time limit (on a
+            # barely infeasible LP with a thousand samples or more it can stall for minutes)
+            opts = {**HIGHS_OPTIONS, "time_limit": CONFIRM_TIME_S}
+            check = linprog(cost, method="highs", **{**kw, "options": opts})
+            if check.status != 1:  # 1: time limit reached: the interior-point verdict stands alone
+                res, verdict = check, "interior point, confirmed by dual simplex"
         if res.status == 2:
+            self.infeasible_verdicts += 1
+            self.infeasible_method = verdict
             return None
         if res.status != 0:
             raise SolverError(f"limited planner: linear program at {K} samples failed ({res.message})")
@@ -456,7 +483,7 @@ class LimitLP:
         r = run[k]
         p = seg.start[r]
         j = k - p
-        P, gh, psi, R = kd.blk[bi]
+        P, _gh, psi, R = kd.blk[bi]
         d = len(self.blocks[bi].idx)
         cols = [var(p, cc) for cc in range(d)] + [lvar[r], T[k]]
         tco = self.slew * seg.slope[r] * R[j, c] if self.slew is not None else 0.0

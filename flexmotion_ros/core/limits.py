@@ -33,8 +33,8 @@ An LP with all ``K`` commands costs seconds at 1 kHz.  So:
    certificate: deflection limits usually end here, their lifted bounds are
    weak).
 
-Exactness: the accepted sequence is the smoothest one (total variation) in
-the final structure with every state and slew limit tightened by ``1e-7``;
+Exactness: the accepted sequence is the smoothest one (total variation;
+under a slew limit alone any vertex) in the final structure with every state and slew limit tightened by ``1e-7``;
 its arrival is corrected to rounding and every limit is checked at and
 between the samples on the exact matrix-exponential simulation.  A
 deflection peak between samples above its limit becomes a cut (a
@@ -68,8 +68,14 @@ FULL_SAMPLES = 160
 #: Window half-widths (samples): mapped from the coarser level (in its samples), or from the same rate.
 MAP_WIDTH = 2
 OWN_WIDTH = 4
+#: Fallback windows are this many times wider (before every sample is freed).
+WIDE = 4
 #: The last-resort infeasibility proof loosens every limit by this (relative; above HiGHS's 1e-10 feasibility tolerance).
 LOOSEN = 1e-9
+
+
+class Unreachable(SolverError):
+    """The sampled system cannot reach the target at this rate (e.g. ``omega dt`` a multiple of ``pi``)."""
 
 
 @dataclass
@@ -84,7 +90,9 @@ class LimitedProfile:
     unlimited_samples : int
         The ZOH optimum without limits (proved fewest by :func:`plan_zoh`).
     lower_bound_samples : int
-        No sequence with fewer samples satisfies every limit (weak-duality bound above 1).
+        No sequence with fewer samples satisfies every limit: proved by the
+        unlimited ZOH optimum, a weak-duality bound above 1 or HiGHS's
+        infeasibility verdict (``extra["lower_bound_proof"]`` says which).
     minimal : bool
         ``sampled.samples == lower_bound_samples``.
     added_time_s : float
@@ -151,14 +159,21 @@ class _Level:
     def _cap(self, K: int) -> None:
         if K > self.K_cap:
             names = ", ".join(f"limits.{n}" for n in self.lp.limits.active)
-            raise GoalError(names, f"no move within {self.K_cap} samples ({self.K_cap / self.rate:.4g} s) satisfies the limits; relax them")
+            raise GoalError(names, f"no move within {self.K_cap / self.rate:.4g} s ({MAX_FACTOR} x the unlimited move) satisfies the limits; relax them")
 
     def probe(self, K: int) -> float:
         if K not in self.t:
             self._cap(K)
-            sol = self.lp.solve(K, self.segments(K))
-            if sol is None:  # the runs cannot reach the target: every sample free
+            sol = self.lp.solve(K, self.segments(K)) if self.ref is not None else None
+            if sol is None and self.ref is not None:  # the runs cannot reach the target: wider windows
+                sol = self.lp.solve(K, map_runs(self.ref[0], self.ref[1], K, WIDE * max(self.width, OWN_WIDTH)))
+            if sol is None:  # no windows, or still none: every sample free (seconds at 1 kHz)
                 sol = self.lp.solve(K)
+            if sol is None:
+                raise Unreachable(
+                    f"limited planner: no {K}-sample sequence at {self.rate:g} Hz reaches the target "
+                    "(a mode is not steerable at this sampling rate)"
+                )
             self.sols[K] = sol
             self.t[K] = sol.t
             if not self.own and self.ref is not None:  # narrower windows from this rate's own optimum
@@ -238,31 +253,39 @@ def _extrapolate(times: list[tuple[float, float]], dt: float) -> float:
     return t2 + (t2 - t1) / (d2 - d1) * (dt - d2)
 
 
-def _prove(level: _Level, K: int) -> bool | None:
-    """Is ``K`` proved infeasible?  True: proved; False: ``K`` turned out feasible; None: not proved."""
+#: How a lower bound on the sample count was proved (``LimitedProfile.extra["lower_bound_proof"]``).
+PROOF_UNLIMITED = "unlimited ZOH optimum"
+PROOF_DUAL = "weak-duality bound"
+PROOF_HIGHS = "HiGHS infeasible verdict"
+
+
+def _prove(level: _Level, K: int) -> bool | str | None:
+    """Is ``K`` proved infeasible?  The proof kind if so; False: ``K`` turned out feasible; None: not proved."""
     lp = level.lp
     t = level.probe(K)
     if t <= 1.0:
         return False
     sol = level.sols[K]
     if level.full or sol.segments.n_free == K:
-        return True if proves_infeasible(dual_bound(lp, sol)[0]) else None
-    if proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
-        return True
-    # wider windows around this structure, lifted again; then every sample free
-    wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, 4 * max(level.width, OWN_WIDTH)))
-    if wide is not None:
-        if wide.t <= 1.0:
-            level.sols[K], level.t[K] = wide, wide.t
-            return False
-        if proves_infeasible(dual_bound(lp, lift(lp, wide))[0]):
-            return True
+        if proves_infeasible(dual_bound(lp, sol)[0]):
+            return PROOF_DUAL
+    else:
+        if proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
+            return PROOF_DUAL
+        # wider windows around this structure, lifted again; then every sample free
+        wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
+        if wide is not None:
+            if wide.t <= 1.0:
+                level.sols[K], level.t[K] = wide, wide.t
+                return False
+            if proves_infeasible(dual_bound(lp, lift(lp, wide))[0]):
+                return PROOF_DUAL
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
     full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
     if full is None:
-        return True
+        return f"{PROOF_HIGHS} ({lp.infeasible_method})"
     level.sols[K], level.t[K] = full, 1.0
     return False
 
@@ -274,7 +297,7 @@ def _accept(level: _Level, K: int):
     """
     lp = level.lp
     seg = level.sols[K].segments
-    for margin_try in range(2):
+    for _attempt in ("this structure", "every sample free"):
         sol = lp.solve(K, seg, mode="smooth")
         if sol is None and seg.n_free < K:
             sol = lp.solve(K, mode="smooth")
@@ -335,7 +358,13 @@ def plan_limited(
         level = _Level(problem, r, limits, round(K_cap * r / rate) + 10, lp if final else None, ref, width)
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
         guess = math.ceil(_extrapolate(times, 1.0 / r) * r - 1e-9) if times else lo + 1
-        K = level.fewest(guess, lo)
+        try:
+            K = level.fewest(guess, lo)
+        except Unreachable:
+            if final:
+                raise
+            ref = None  # a coarse rate the user never asked for cannot steer a mode: skip it
+            continue
         x = level.crossing()
         times.append((1.0 / r, (x if x is not None and K - 1 <= x <= K else K) / r))
         if not final:
@@ -344,7 +373,9 @@ def plan_limited(
     coarse_time = time.perf_counter() - t0
     accepted = None
     reject = proved - 1  # counts up to here are out: proved infeasible, or no sequence passed the checks
-    for _ in range(2 * MAX_CUT_ROUNDS):
+    proof = PROOF_UNLIMITED
+    rounds = 2 * MAX_CUT_ROUNDS
+    for _ in range(rounds):
         # the proof for K - 1, moving down while K - 1 turns out feasible
         while K - 1 >= proved and K - 1 > reject:
             res = _prove(level, K - 1)
@@ -352,7 +383,7 @@ def plan_limited(
                 K -= 1
                 continue
             if res:
-                proved = K
+                proved, proof = K, res
             break
         res = _accept(level, K)
         if isinstance(res, tuple):
@@ -365,7 +396,10 @@ def plan_limited(
             reject = K
             K = level.fewest(K + 1, K)
     if accepted is None:
-        raise SolverError("limited planner: no sequence passed the exact limit checks")
+        raise SolverError(
+            f"limited planner: no sequence passed the exact limit checks in {rounds} rounds "
+            f"({len(lp.cuts)} deflection cuts added, counts up to {reject} rejected); relax the limits"
+        )
     K, u, peaks = accepted
     minimal = K == proved
     prof = verified_samples(problem, u, dt, "limited", minimal, proved, None, {}, t0)
@@ -380,5 +414,5 @@ def plan_limited(
         lp_solves=lp.solves + solves,
         cuts=len(lp.cuts),
         solve_time_s=time.perf_counter() - t0,
-        extra={"levels_hz": rates, "coarse_time_s": coarse_time, "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K},
+        extra={"levels_hz": rates, "coarse_time_s": coarse_time, "lower_bound_proof": proof, "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K},
     )
