@@ -61,7 +61,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.srv import GetPlan
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64, Float64MultiArray
@@ -483,8 +483,15 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """``ros2 run flexmotion_ros planner [--ros-args --params-file FILE]``."""
-    return run(PlannerNode, lambda: MultiThreadedExecutor(num_threads=4), NODE_NAME, args)
+    """``ros2 run flexmotion_ros planner [--ros-args --params-file FILE]``.
+
+    A single-threaded executor: goals and services are serialised by design
+    (one plan at a time) and commands go out from the stream thread.  Jazzy's
+    rclpy ``MultiThreadedExecutor`` re-queues callbacks that have not started
+    and spins holding the GIL (ros2/rclpy#1452, fixed upstream by #1547):
+    measured here, a 100 Hz subscription in it stalled for up to 5.5 s.
+    """
+    return run(PlannerNode, SingleThreadedExecutor, NODE_NAME, args)
 
 
 __all__ = ["DIAGNOSTIC_NAME", "NODE_NAME", "PLANNER_NODE_ONLY", "PlannerNode", "main"]

@@ -26,7 +26,7 @@ import pytest
 import rclpy
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -122,26 +122,38 @@ class Probe(Node):
 
 
 class Ros:
-    """Nodes of one test on one executor spinning in a background thread."""
+    """Nodes of one test, each on its own single-threaded executor in a background thread.
+
+    One executor per node, as if each ran in its own process (a planner busy
+    planning does not hold up the plant or the probe).  Not Jazzy's
+    ``MultiThreadedExecutor``: it re-queues callbacks that have not started and
+    spins holding the GIL (ros2/rclpy#1452); here it stalled a 100 Hz
+    subscription for seconds.
+    """
 
     def __init__(self) -> None:
         self.context = Context()
         rclpy.init(context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self.nodes: list[Node] = []
+        self.executors: list[SingleThreadedExecutor] = []
+        self._threads: list[threading.Thread] = []
         self.probe = self.add(Probe(self.context))
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
 
-    def _spin(self) -> None:
+    @staticmethod
+    def _spin(executor: SingleThreadedExecutor) -> None:
         try:
-            self.executor.spin()
+            executor.spin()
         except Exception as exc:  # noqa: BLE001 -- a shutdown race may end the spin; say so
             print(f"executor stopped: {exc!r}")
 
     def add(self, node: Node) -> Node:
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(node)
+        thread = threading.Thread(target=self._spin, args=(executor,), daemon=True)
+        thread.start()
         self.nodes.append(node)
-        self.executor.add_node(node)
+        self.executors.append(executor)
+        self._threads.append(thread)
         return node
 
     def planner(self, **params: Any) -> PlannerNode:
@@ -166,8 +178,10 @@ class Ros:
         return future.result()
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
-        self._thread.join(timeout=5.0)
+        for executor in self.executors:
+            executor.shutdown(timeout_sec=2.0)
+        for thread in self._threads:
+            thread.join(timeout=5.0)
         for node in self.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=self.context)
