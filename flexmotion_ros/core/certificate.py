@@ -68,6 +68,10 @@ class Certificate:
         Why it failed, or ``"ok"``.
     lower_bound : float or None
         Proved lower bound on the optimal time (s) used for the gap test.
+    details : dict
+        ``zeros_tau``: the sign changes of the switching function found with
+        proof (time-to-go ``T - t``, s, increasing); ``sign0``: its sign
+        before the first of them.  Empty if no isolation was run.
     """
 
     passed: bool
@@ -224,4 +228,7 @@ def certify(
         hamiltonian_max_abs=ham_max,
         message="; ".join(reasons) or "ok",
         lower_bound=lower_bound,
+        # the proved sign changes of S (time-to-go, s): a failed candidate's
+        # structure can be corrected from them (fast path of the planner)
+        details={"zeros_tau": iso.roots, "sign0": iso.sign0},
     )

@@ -22,6 +22,11 @@ is non-decreasing in ``T``.  So the optimal time is the root of ``m(T) = 1``:
 3. *Polish*: Newton on ``F(nu, T) = 0`` jointly (quadratic convergence) to
    machine precision.
 
+Fast path: from the smoothed co-state of step 1, Newton on the switch times
+(:mod:`flexmotion_ros.core.structure_guess`) usually reaches the optimum
+without the exact inner problems; its result is kept only if it passes the
+checks below (else the full solver runs, unchanged).
+
 The result is then checked independently: the final state by
 matrix-exponential simulation, optimality by the Pontryagin certificate
 (:mod:`flexmotion_ros.core.certificate`).  A profile whose final state misses
@@ -30,6 +35,7 @@ the target is never returned.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass
@@ -54,6 +60,7 @@ from .reachable_set import (
 )
 from .rigid_body import rigid_profile, rigid_time
 from .simulation import PiecewiseConstant, simulate
+from .structure_guess import newton_from_guess
 from .switch_newton import structure_newton
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
@@ -68,10 +75,42 @@ AT_REST = 1e-100
 #: Refuse moves whose optimum needs more switches than this (an actuator far
 #: too weak for the state: a chattering move of thousands of periods).
 MAX_SWITCHES = 5000
+#: Try the guess-Newton-certify fast path (:mod:`.structure_guess`) before the
+#: full solver.  Switching it off changes speed only, never the result's
+#: guarantees (tests compare both).
+FAST_PATH = True
 
 
-def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
+def _smoothed_start(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float]:
+    """Co-state direction (scaled) and time (s) from smoothed inner problems.
+
+    Cheap, robust and blind to the number of switches: decreasing smoothing
+    brings ``T`` close to the optimum.  The first stage of :func:`_solve`,
+    and the guess of the fast path.  Leaves ``sh`` unchanged.
+    """
+    T = max(T_init, T_low, 1e-300)
+    nuh = None
+    for eps in SMOOTHING:
+        lo, hi = T_low, math.inf
+        for _ in range(12):
+            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
+            if m > 0.0 and abs(math.log(m)) < 1e-3:
+                break
+            if m < 1.0:
+                lo = max(lo, T)
+            else:
+                hi = min(hi, T)
+            T = next_time(T, m, dm, lo, hi)
+    return nuh, T
+
+
+def _solve(
+    sh: Shooting, T_low: float, T_init: float, start: tuple[np.ndarray, float] | None = None
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
     """Optimal time and co-state direction.  ``T_low`` is a proved lower bound (may be 0).
+
+    ``start``: the result of :func:`_smoothed_start` for the same ``sh``,
+    ``T_low`` and ``T_init``, if already computed (it is deterministic).
 
     1. A smoothed, discretised version of the convex inner problem at the
        first guess, then the exact one (trust region), give a co-state
@@ -85,21 +124,9 @@ def _solve(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float
        accuracy and a joint Newton polish on ``(nu, T)`` finishes.
     The caller certifies whatever comes out.
     """
-    T = max(T_init, T_low, 1e-300)
-    # smoothed inner problems (cheap, robust, any structure) with decreasing
-    # smoothing bring T close to the optimum ...
-    nuh = None
-    for eps in SMOOTHING:
-        lo, hi = T_low, math.inf
-        for _ in range(12):
-            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
-            if m > 0.0 and abs(math.log(m)) < 1e-3:
-                break
-            if m < 1.0:
-                lo = max(lo, T)
-            else:
-                hi = min(hi, T)
-            T = next_time(T, m, dm, lo, hi)
+    # smoothed inner problems (cheap, robust, any structure) bring T close to
+    # the optimum ...
+    nuh, T = start if start is not None else _smoothed_start(sh, T_low, T_init)
     # ... where the exact inner problem gives the switch structure
     nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=30, rtol=1e-12)
     nuh = rescale(sh, nuh, T)
@@ -208,19 +235,69 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
     system = ModalResponse(model, problem.include_position)
     x0 = problem.shifted_initial()
     if not np.any(np.abs(x0) > AT_REST):
-        return _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
+        profile = _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
+        profile.extra["solver_path"] = "at_rest"
+        return profile
     rigid = rigid_profile(model, um, x0, problem.include_position)
     T_low = rigid.duration
     if _rigid_is_optimal(system, x0, um, rigid):
         nu = np.zeros(system.n)
         nu[: system.r] = rigid.nu
         roots = np.sort(T_low - rigid.switch_times)
-        return _assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
+        profile = _assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
+        profile.extra["solver_path"] = "rigid"
+        return profile
     # a first guess: the rigid time plus a quarter period of the slowest mode
     T_init = T_low + (0.5 * math.pi / min(model.omega) if model.omega else 0.0)
     sh = Shooting(system, x0, um, T_init)
-    nuh, T, roots, signs, _ = _solve(sh, T_low * (1.0 - 1e-12), T_init)
-    return _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+    T_lb = T_low * (1.0 - 1e-12)
+    start = _smoothed_start(sh, T_lb, T_init)
+    if FAST_PATH:
+        fast = _fast_path(problem, system, copy.copy(sh), start, t0, T_low)
+        if fast is not None:
+            return fast
+    # the full solver, exactly as without the fast path (``sh`` is untouched)
+    nuh, T, roots, signs, _ = _solve(sh, T_lb, T_init, start)
+    profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+    profile.extra["solver_path"] = "full"
+    return profile
+
+
+def _fast_path(problem, system, sh: Shooting, start, t0: float, T_low: float) -> BangBangProfile | None:
+    """Guess, Newton, certify (:mod:`.structure_guess`); None if anything falls short.
+
+    The switch-time Newton runs from the structure of the smoothed co-state
+    ``start``, skipping the exact inner problems.  Every candidate goes
+    through the same exact simulation and certificate as the full solver's
+    result (:func:`_assemble`), and is kept only if the final-state check and
+    the certificate's full sign test pass (not merely the gap to the rigid
+    bound: that close to it, the full solver decides).  ``sh`` is modified
+    (rescaled): pass a copy.
+    """
+
+    candidates = 0
+
+    def check(nuh, T, roots, signs):
+        nonlocal candidates
+        candidates += 1
+        try:
+            profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+        except SolverError:  # the target missed: no structure information either
+            return None, None, 0.0
+        cert = profile.certificate
+        if cert.passed and cert.message == "ok" and profile.final_state_error_relative <= FINAL_STATE_RTOL:
+            return profile, None, 0.0
+        return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+
+    try:
+        nuh = rescale(sh, start[0], start[1])
+        profile = newton_from_guess(sh, nuh, start[1], check)
+    except Exception:  # noqa: BLE001 - whatever went wrong, the full solver decides
+        return None
+    if profile is not None:
+        profile.extra["solver_path"] = "fast"
+        profile.extra["fast_path_candidates"] = candidates  # extremals certified (1 + structure corrections)
+    return profile
 
 
 def _rigid_is_optimal(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> bool:

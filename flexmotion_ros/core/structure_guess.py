@@ -1,0 +1,184 @@
+"""Fast path of the time-optimal planner: guess a switch structure, Newton, certify.
+
+The full solver (:func:`~flexmotion_ros.core.time_optimal._solve`) reaches the
+switch structure through the *exact* convex inner problem (proved root
+isolation at every trust-region step), which dominates its cost.  Most moves
+do not need it: the sign changes of the switching function of the *smoothed*
+inner problem's co-state (the warm start the full solver computes anyway)
+already give the structure, or one a simple edit away from it.  This module
+runs the switch-time Newton
+(:func:`~flexmotion_ros.core.switch_newton.refine_switches`) from there and
+hands every converged extremal to a check (the planner's exact simulation and
+Pontryagin certificate), with structure edits:
+
+* a converged extremal whose switching function changes sign elsewhere too
+  (the certificate's proved zeros) gets those zeros, as in
+  :func:`~flexmotion_ros.core.switch_newton.structure_newton`;
+* a Newton run that fails because two neighbouring switches merge (a
+  spurious pair from a near-tangency of the smoothed switching function), or
+  because a switch leaves ``(0, T)``, restarts without them.
+
+Nothing here is trusted: only what the check accepts is returned, and the
+caller runs the full solver otherwise.  So the fast path can only make the
+planner faster, never less certified.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .reachable_set import Shooting
+from .switch_newton import _updated_structure, refine_switches
+from .switching import sample_grid
+
+#: Newton runs (first structure + edits) before the fast path gives up.
+MAX_TRIES = 4
+#: Two switches closer than this (relative to ``T``) where a Newton run
+#: failed are taken as a spurious pair merging.
+MERGE_RTOL = 1e-3
+#: Sampling density of the structure guess (times the planners' grid).
+GRID_DENSITY = 4.0
+#: A local minimum of ``|S|`` below this fraction of its maximum is a near-zero.
+NEAR_ZERO = 1e-2
+#: ... and below this, one even if the switches are not too few.
+VERY_NEAR_ZERO = 1e-3
+
+#: ``check(nuh, T, roots, signs) -> (accepted, zeros, sign0)``: ``accepted`` is
+#: the certified result or None; then ``zeros`` (time-to-go, s) and ``sign0``
+#: are the proved sign changes of the candidate's switching function and its
+#: first sign, or ``zeros`` is None if the candidate failed for another reason.
+Check = Callable[[np.ndarray, float, np.ndarray, np.ndarray], tuple[object | None, np.ndarray | None, float]]
+
+
+def newton_from_guess(sh: Shooting, nuh: np.ndarray, T: float, check: Check) -> object | None:
+    """Certified extremal from the switch structure of a co-state guess, or None.
+
+    Parameters
+    ----------
+    sh : Shooting
+        The problem (its state scale ``sh.s`` should be the one for ``T``).
+    nuh : ndarray
+        Scaled co-state direction guess (``nu * sh.s``), e.g. from
+        :func:`~flexmotion_ros.core.reachable_set.inner_smooth`.
+    T : float
+        Duration guess (s).
+    check : Check
+        Certifies a converged candidate ``(nuh, T, roots, signs)`` (scaled
+        co-state, duration in s, switch times-to-go in s, sign of ``S`` on
+        each interval in time-to-go order); see :data:`Check`.
+
+    Returns
+    -------
+    object or None
+        What ``check`` accepted, or None if no structure tried led to it.
+    """
+    roots, sign0 = guess_structure(sh, nuh, T)
+    tried: set[tuple[int, float]] = set()
+    for _ in range(MAX_TRIES):
+        key = (int(roots.size), float(sign0))
+        if key in tried:  # an edit led back to a structure that failed: stop cycling
+            return None
+        tried.add(key)
+        ok, tau, nuh_r, T_r, _ = refine_switches(sh, roots, sign0, nuh, T)
+        if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
+            return None
+        if ok:
+            signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+            accepted, zeros, zsign0 = check(nuh_r, T_r, tau, signs)
+            if accepted is not None:
+                return accepted
+            if zeros is None:
+                return None
+            # converged, but S changes sign elsewhere too: adopt its zeros
+            roots, sign0 = _updated_structure(tau, sign0, zeros, zsign0)
+        else:
+            edited = _drop_merged(tau, sign0, T_r)
+            if edited is None:
+                return None
+            roots, sign0 = edited
+        nuh, T = nuh_r, T_r
+    return None
+
+
+def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray, float]:
+    """Switch structure guessed from the switching function ``S`` of ``nuh`` at ``T``.
+
+    The sign changes of ``S`` on a fine grid (:data:`GRID_DENSITY` times the
+    planners' sampling grid; linear interpolation), plus narrow pairs of
+    switches where ``S`` nearly touches zero (a smoothed co-state rounds off
+    short blips of the optimum): at every local minimum of ``|S|`` below
+    :data:`VERY_NEAR_ZERO` of its maximum, and, if the switches are fewer
+    than ``n - 1`` (fewer than that reach only a thin set of states, so an
+    optimum rarely has fewer), at the deepest ones below :data:`NEAR_ZERO`,
+    then by splitting the flattest zeros into three.  Nothing is proved: a
+    guess needs no more, and the certificate isolates the zeros of the
+    final candidate with proof.
+
+    Parameters
+    ----------
+    sh : Shooting
+        The problem.
+    nuh : ndarray
+        Scaled co-state direction (``nu * sh.s``).
+    T : float
+        Duration (s).
+
+    Returns
+    -------
+    roots : ndarray
+        Guessed switch times-to-go (s), increasing, inside ``(0, T)``.
+    sign0 : float
+        Sign of ``S`` before the first of them.
+    """
+    grid = sample_grid(sh.sys, T, density=GRID_DENSITY)
+    S, dS = sh.sys.switching(nuh / sh.s, grid, derivative=True)
+    sg = np.sign(S)
+    nz = np.flatnonzero(sg)
+    if nz.size == 0:
+        return np.empty(0), 1.0
+    k = np.flatnonzero(sg[nz[:-1]] != sg[nz[1:]])  # exact zeros carry no sign: skipped
+    i, j = nz[k], nz[k + 1]
+    roots = grid[i] + (grid[j] - grid[i]) * S[i] / (S[i] - S[j])
+    sign0 = float(sg[nz[0]])
+    missing = (sh.sys.n - roots.size) // 2  # pairs short of n - 1 switches (rounded up)
+    h = grid[1] - grid[0]
+    a = np.abs(S)
+    top = float(np.max(a))
+    # local minima of |S| without a sign change: a pair would make a dip there
+    m = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] <= a[2:]) & (sg[:-2] == sg[2:])) + 1
+    m = m[np.argsort(a[m])]
+    deep = int(np.count_nonzero(a[m] < VERY_NEAR_ZERO * top))
+    m = m[a[m] < NEAR_ZERO * top]
+    centres = list(grid[m][: max(missing, deep)])
+    # then the flattest zeros (smallest |S'| relative to max|S| / T): three zeros nearby
+    if len(centres) < missing and roots.size:
+        slope = np.abs(np.interp(roots, grid, dS)) * T / top
+        centres += list(roots[np.argsort(slope)][: missing - len(centres)])
+    pairs = np.array([[c - 0.25 * h, c + 0.25 * h] for c in centres]).reshape(-1, 2)
+    pairs = pairs[(pairs[:, 0] > 0.0) & (pairs[:, 1] < T)].ravel()
+    return (np.unique(np.concatenate([roots, pairs])) if pairs.size else roots), sign0
+
+
+def _drop_merged(tau: np.ndarray, sign0: float, T: float) -> tuple[np.ndarray, float] | None:
+    """The structure without a merging pair of switches or a switch at an end, or None.
+
+    ``tau`` are the switch times-to-go (s) where a Newton run stopped.  A
+    pair of neighbours closer than ``MERGE_RTOL T`` is removed (the sign
+    outside the pair is unchanged); a first switch within that of ``tau = 0``
+    is removed and the first level flips; a last one near ``T`` is removed.
+    """
+    tol = MERGE_RTOL * T
+    if tau.size == 0:
+        return None
+    if tau.size >= 2:
+        gaps = np.diff(tau)
+        k = int(np.argmin(gaps))
+        if gaps[k] <= tol:
+            return np.delete(tau, [k, k + 1]), sign0
+    if tau[0] <= tol:
+        return tau[1:], -sign0
+    if tau[-1] >= T - tol:
+        return tau[:-1], sign0
+    return None

@@ -1,0 +1,156 @@
+"""The guess-Newton-certify fast path of ``plan_time_optimal`` (core.structure_guess).
+
+It must be taken on simple moves (that is what makes the planner fast), and
+it must never change the answer: whenever it is taken, or its guess is
+wrong, or it is sabotaged, the result equals the full solver's certified
+optimum.  The full solver is run by switching the fast path off
+(``time_optimal.FAST_PATH``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexmotion_ros.core import (
+    ModalModel,
+    chain,
+    motion_to_rest,
+    plan_time_optimal,
+    rest_to_rest,
+    structure_guess,
+    time_optimal,
+)
+
+WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
+DAMPED = ModalModel(b0=1.0, c=-0.3, omega=[3.0, 7.0], zeta=[0.1, 0.05], b=[0.8, -0.5])
+
+
+def beam(n_modes: int) -> ModalModel:
+    """The benchmark's lumped flexible link (bench/planner_latency.py)."""
+    return chain([0.5] * (n_modes + 1), [400.0] * n_modes, [0.4] * n_modes, force_on=0).model
+
+
+def full_solver(problem, monkeypatch):
+    with monkeypatch.context() as m:
+        m.setattr(time_optimal, "FAST_PATH", False)
+        return plan_time_optimal(problem)
+
+
+def assert_same_optimum(fast, full):
+    assert fast.certified and full.certified, (fast.certificate.message, full.certificate.message)
+    assert fast.certificate.message == "ok"
+    assert abs(fast.duration - full.duration) <= 1e-9
+    assert fast.switch_times.shape == full.switch_times.shape
+    assert np.max(np.abs(fast.switch_times - full.switch_times), initial=0.0) <= 1e-9
+    assert np.array_equal(fast.levels, full.levels)
+    assert fast.final_state_error_relative <= time_optimal.FINAL_STATE_RTOL
+    assert type(fast.certificate) is type(full.certificate)
+
+
+SIMPLE = [
+    pytest.param(rest_to_rest(WB, 1.0, 1.0), id="wie-bernstein"),
+    pytest.param(rest_to_rest(WB, 1.0, 1e-3), id="wie-bernstein-tiny-move"),
+    pytest.param(rest_to_rest(WB, 1.0, 10.0), id="wie-bernstein-blip-at-mid-move"),
+    pytest.param(rest_to_rest(beam(1), 10.0, 2.5), id="beam-1-mode"),
+    pytest.param(rest_to_rest(beam(2), 10.0, 1.667), id="beam-2-modes"),
+    pytest.param(rest_to_rest(beam(3), 10.0, 1.25), id="beam-3-modes"),
+    pytest.param(rest_to_rest(DAMPED, 2.0, 30.0), id="damped-2-modes-7-switches"),
+    pytest.param(motion_to_rest(DAMPED, 2.0, 1.5), id="damped-motion-to-rest"),
+]
+
+
+@pytest.mark.parametrize("problem", SIMPLE)
+def test_fast_path_is_taken_and_gives_the_full_solvers_optimum(problem, monkeypatch):
+    fast = plan_time_optimal(problem)
+    assert fast.extra["solver_path"] == "fast"
+    full = full_solver(problem, monkeypatch)
+    assert full.extra["solver_path"] == "full"
+    assert_same_optimum(fast, full)
+
+
+def test_a_wrong_structure_guess_is_corrected():
+    """3-mode beam, long move: the smoothed co-state has 7 sign changes, the optimum 9.
+
+    The first converged extremal is rejected by the certificate (extra sign
+    changes), the structure is corrected from its proved zeros, and only
+    then is a candidate accepted.
+    """
+    p = plan_time_optimal(rest_to_rest(beam(3), 10.0, 31.25))
+    assert p.extra["solver_path"] == "fast"
+    assert p.extra["fast_path_candidates"] >= 2
+    assert p.switch_times.size == 9
+
+
+@pytest.mark.parametrize(
+    "problem",
+    [
+        pytest.param(rest_to_rest(WB, 1.0, 1.0), id="wie-bernstein"),
+        pytest.param(rest_to_rest(beam(2), 10.0, 41.67), id="beam-2-modes-long"),
+        pytest.param(rest_to_rest(DAMPED, 2.0, 0.01), id="damped-small-move"),
+    ],
+)
+@pytest.mark.parametrize(
+    "bad_guess",
+    [
+        pytest.param(lambda sh, nuh, T: (np.empty(0), 1.0), id="no-switch"),
+        pytest.param(lambda sh, nuh, T: (np.array([0.5 * T]), -1.0), id="one-switch-wrong-sign"),
+        pytest.param(lambda sh, nuh, T: (np.linspace(0.1, 0.9, 11) * T, 1.0), id="eleven-switches"),
+    ],
+)
+def test_a_wrong_guess_still_returns_the_certified_optimum(problem, bad_guess, monkeypatch):
+    full = full_solver(problem, monkeypatch)
+    monkeypatch.setattr(structure_guess, "guess_structure", bad_guess)
+    p = plan_time_optimal(problem)
+    assert p.extra["solver_path"] in ("fast", "full")
+    assert p.certified, p.certificate.message
+    assert abs(p.duration - full.duration) <= 1e-9
+    assert np.max(np.abs(p.switch_times - full.switch_times), initial=0.0) <= 1e-9
+
+
+def test_a_failing_fast_path_falls_back_to_the_full_solver(monkeypatch):
+    problem = rest_to_rest(beam(2), 10.0, 1.667)
+    full = full_solver(problem, monkeypatch)
+
+    def broken(*args, **kwargs):
+        raise FloatingPointError("sabotaged")
+
+    monkeypatch.setattr(time_optimal, "newton_from_guess", broken)
+    p = plan_time_optimal(problem)
+    assert p.extra["solver_path"] == "full"
+    assert p.duration == full.duration
+    assert np.array_equal(p.switch_times, full.switch_times)
+    assert p.certified
+
+
+def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch):
+    """A candidate whose certificate fails is rejected even if it hits the target."""
+    problem = rest_to_rest(beam(1), 10.0, 2.5)
+    full = full_solver(problem, monkeypatch)
+    real = time_optimal.certify
+
+    def failing(*args, **kwargs):
+        cert = real(*args, **kwargs)
+        cert.passed, cert.message = False, "sabotaged"
+        return cert
+
+    calls = []
+
+    def spy(*args, **kwargs):
+        calls.append(1)
+        # the fast path's candidates fail; the full solver's (after the fast path gave up) pass
+        return failing(*args, **kwargs) if plan_state["fast"] else real(*args, **kwargs)
+
+    plan_state = {"fast": True}
+    real_solve = time_optimal._solve
+
+    def solve(*args, **kwargs):
+        plan_state["fast"] = False
+        return real_solve(*args, **kwargs)
+
+    monkeypatch.setattr(time_optimal, "certify", spy)
+    monkeypatch.setattr(time_optimal, "_solve", solve)
+    p = plan_time_optimal(problem)
+    assert len(calls) >= 2  # the fast path's candidate was certified (and rejected)
+    assert p.extra["solver_path"] == "full"
+    assert p.certified and abs(p.duration - full.duration) <= 1e-9
