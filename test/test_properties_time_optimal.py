@@ -184,9 +184,21 @@ def _rigid_phase(
     """Displacement and final velocity of ``p'' = c p' + b0 u`` over ``t`` from velocity ``v0``."""
     if c == 0.0:
         return v0 * t + 0.5 * b0 * u * t * t, v0 + b0 * u * t
-    e = math.exp(c * t)
-    v = v0 * e + b0 * u * (e - 1.0) / c
-    return v0 * (e - 1.0) / c + b0 * u / c * ((e - 1.0) / c - t), v
+    x = c * t
+    em1 = math.expm1(x)  # e^{ct} - 1 without cancellation (c t is often ~1e-5)
+    v = v0 + v0 * em1 + b0 * u * em1 / c
+    return v0 * em1 / c + b0 * u * _expm1_minus_x(x) / (c * c), v
+
+
+def _expm1_minus_x(x: float) -> float:
+    """``e^x - 1 - x`` to full relative precision (a series where the difference cancels)."""
+    if abs(x) > 0.1:
+        return math.expm1(x) - x
+    term, total = x * x / 2.0, 0.0
+    for k in range(3, 30):
+        total += term
+        term *= x / k
+    return total
 
 
 def _stop_time(b0: float, c: float, v: float, u: float) -> float:
@@ -195,7 +207,7 @@ def _stop_time(b0: float, c: float, v: float, u: float) -> float:
     if c == 0.0:
         return -v / a
     # v(t) = (v + a/c) e^{ct} - a/c = 0
-    return math.log((a / c) / (v + a / c)) / c
+    return -math.log1p(v * c / a) / c  # = log((a/c) / (v + a/c)) / c, without cancellation
 
 
 def rigid_min_time(
