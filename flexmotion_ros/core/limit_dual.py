@@ -37,6 +37,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from .limit_lp import CUT, SLEW, STATE, LimitLP, LPSolution
+from .sparse_rows import SparseRows
 
 #: A bound must exceed 1 by this (relative) to count as a proof.
 PROOF_RTOL = 1e-9
@@ -160,13 +161,13 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
     interior = np.flatnonzero(np.abs(v) < thr)
     # unknowns: psi (K x n, psi_{K-1} = -nu / sc) | lambda (J); each with a time stamp for a banded order
     ol = n * K
-    eq = _Triplets()
+    eq = SparseRows()
     # psi_{m-1} - Phi^T psi_m - pi_m(lambda) = 0, vectorised over m
     m = np.arange(1, K)
     for e in range(n):
         cols = [(m - 1) * n + e] + [m * n + f for f in range(n) if Phi[f, e] != 0.0]
         vals = [np.ones(m.size)] + [np.full(m.size, -Phi[f, e]) for f in range(n) if Phi[f, e] != 0.0]
-        eq.rows(np.column_stack(cols), np.column_stack(vals), stamp=m - 0.5)
+        eq.add_many(np.column_stack(cols), np.column_stack(vals), s=m - 0.5)
     rec0 = 0  # row of (m, e) is e * (K - 1) + (m - 1)
     direct: dict[int, list] = {}
     limit = {b.idx[0]: float(b.D[0]) for b in lp.blocks}
@@ -175,14 +176,14 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
         col = ol + j
         lam_stamp[j] = k - 0.5
         if kind == STATE and 1 <= k <= K - 1:
-            eq.add(rec0 + idx * (K - 1) + (k - 1), col, -sgn / limit[idx])
+            eq.entry(rec0 + idx * (K - 1) + (k - 1), col, -sgn / limit[idx])
         elif kind == CUT:
             Ps, Gs = lp.at(s_, idx)
             ix = lp.sys.r + 2 * idx
             qm = float(lp.limits.deflection_max[idx])
             if k >= 1:  # (sample 0's state is the initial one)
                 for c in range(2):
-                    eq.add(rec0 + (ix + c) * (K - 1) + (k - 1), col, -sgn * Ps[c] / qm)
+                    eq.entry(rec0 + (ix + c) * (K - 1) + (k - 1), col, -sgn * Ps[c] / qm)
             direct.setdefault(k, []).append((col, sgn * Gs * um / qm))
         elif kind == SLEW:
             if k < K:
@@ -196,7 +197,7 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
             cols.append(col)
             vals.append(val)
         nrm = float(np.linalg.norm(vals)) or 1.0
-        eq.row(cols, np.array(vals) / nrm, stamp=mm)
+        eq.add(cols, np.array(vals) / nrm, s=float(mm))
     # the scale: one component of psi_{K-1} = -nu / sc from the window solution's nu
     e_fix = int(np.argmax(np.abs(sol.nu)))
     if sol.nu[e_fix] == 0.0:
@@ -217,7 +218,7 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
     meta = np.array([[k_, kk, i_, s_] for k_, kk, i_, s_ in rows], float).reshape(-1, 4)
     best, best_bound = sol, -np.inf
     for _ in range(LIFT_ROUNDS):
-        y = _least_squares(A, eq.rhs(), eq.stamps(), stamps, fix, -sol.nu[e_fix] / kd.sc[e_fix], reg, y0)
+        y = _least_squares(A, eq.rhs(), eq.s_array(), stamps, fix, -sol.nu[e_fix] / kd.sc[e_fix], reg, y0)
         if y is None:
             break
         lam = y[ol:]
@@ -274,43 +275,3 @@ def _least_squares(A, b, row_stamp, col_stamp, fix: int, value: float, reg: np.n
     x[keep] = out[m:]
     x[fix] = value
     return x if np.all(np.isfinite(x)) else None
-
-
-class _Triplets:
-    def __init__(self) -> None:
-        self.r, self.c, self.v, self.b, self.st = [], [], [], [], []
-        self.n = 0
-
-    def row(self, cols, vals, rhs: float = 0.0, stamp: float = 0.0) -> None:
-        cols = np.asarray(cols, int)
-        self.r.append(np.full(cols.size, self.n))
-        self.c.append(cols)
-        self.v.append(np.asarray(vals, float))
-        self.b.append(rhs)
-        self.st.append(np.array([stamp], float))
-        self.n += 1
-
-    def rows(self, cols: np.ndarray, vals: np.ndarray, stamp) -> None:
-        m = cols.shape[0]
-        self.r.append(np.repeat(self.n + np.arange(m), cols.shape[1]))
-        self.c.append(cols.ravel())
-        self.v.append(vals.ravel())
-        self.b += [0.0] * m
-        self.st.append(np.broadcast_to(np.asarray(stamp, float), (m,)).copy())
-        self.n += m
-
-    def stamps(self) -> np.ndarray:
-        return np.concatenate(self.st)
-
-    def add(self, r: int, c: int, v: float) -> None:
-        self.r.append(np.array([r]))
-        self.c.append(np.array([c]))
-        self.v.append(np.array([v]))
-
-    def matrix(self, ncols: int):
-        from scipy import sparse
-
-        return sparse.csr_matrix((np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(self.n, ncols))
-
-    def rhs(self) -> np.ndarray:
-        return np.asarray(self.b, float)

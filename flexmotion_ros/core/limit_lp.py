@@ -58,7 +58,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 from scipy.optimize import linprog
 from scipy.signal import fftconvolve
 
@@ -67,6 +66,7 @@ from .errors import GoalError, SolverError
 from .fuel_lp import HIGHS_OPTIONS, correct_arrival, sample_vectors, state_scale
 from .limit_checks import Cut, Limits
 from .modal_response import ModalResponse
+from .sparse_rows import SparseRows
 
 #: Relative margin by which the accepted LP tightens every state and slew limit (absorbs the arrival correction).
 MARGIN = 1e-7
@@ -282,8 +282,8 @@ class LimitLP:
         for b in self.blocks:
             cbase.append(nv)
             nv += len(b.idx) * kn.size
-        E = _Rows()  # equalities
-        U = _Rows()  # inequalities
+        E = SparseRows()  # equalities
+        U = SparseRows()  # inequalities
         sl = self.slew
 
         def u_terms(ms: np.ndarray, coef: np.ndarray):
@@ -443,8 +443,8 @@ class LimitLP:
             cost[0] = 1.0
         elif tvar is not None:
             cost[tvar] = 1.0
-        A_eq, b_eq = E.matrix(nv)
-        A_ub, b_ub = U.matrix(nv)
+        A_eq, b_eq = E.system(nv)
+        A_ub, b_ub = U.system(nv)
         method = "highs-ipm" if F.size > IPM_SAMPLES and self.blocks else "highs"
         kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=HIGHS_OPTIONS)
         res = linprog(cost, method=method, **kw)
@@ -533,53 +533,3 @@ class LimitLP:
             movable[[0, -1]] = False  # keep the end steps inside the slew limit
         out = correct_arrival(G / kd.sc, kd.w / kd.sc, u, movable)
         return np.clip(out, -self.um, self.um)
-
-
-class _Rows:
-    """Sparse rows assembled from triplets; optional metadata (kind, k, index, sign) per row."""
-
-    def __init__(self) -> None:
-        self.r, self.c, self.v, self.b = [], [], [], []
-        self.meta: list = []
-        self.s: list = []
-        self.n = 0
-
-    def add(self, cols, vals, rhs, meta=None, s=0.0) -> None:
-        cols = np.asarray(cols, int)
-        self.r.append(np.full(cols.size, self.n))
-        self.c.append(cols)
-        self.v.append(np.asarray(vals, float))
-        self.b.append(np.array([rhs], float))
-        self.meta.append(np.array([meta if meta is not None else (-1, 0, 0, 0)], float))
-        self.s.append(np.array([s]))
-        self.n += 1
-
-    def add_many(self, cols, vals, rhs, meta=None) -> None:
-        """Rows with the same number of terms: ``cols``, ``vals`` shape ``(rows, terms)``."""
-        m = cols.shape[0]
-        if m == 0:
-            return
-        self.r.append(np.repeat(self.n + np.arange(m), cols.shape[1]))
-        self.c.append(cols.ravel().astype(int))
-        self.v.append(vals.ravel().astype(float))
-        self.b.append(np.asarray(rhs, float))
-        if meta is None:
-            md = np.tile([-1.0, 0.0, 0.0, 0.0], (m, 1))
-        else:
-            kind, k, idx, sgn = meta
-            md = np.column_stack([np.full(m, kind), np.asarray(k, float), np.full(m, idx), np.full(m, sgn)])
-        self.meta.append(md)
-        self.s.append(np.zeros(m))
-        self.n += m
-
-    def matrix(self, nv: int):
-        if not self.n:
-            return None, None
-        A = sparse.csr_matrix((np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(self.n, nv))
-        return A, np.concatenate(self.b)
-
-    def meta_array(self) -> np.ndarray:
-        return np.concatenate(self.meta) if self.meta else np.zeros((0, 4))
-
-    def s_array(self) -> np.ndarray:
-        return np.concatenate(self.s) if self.s else np.zeros(0)
