@@ -45,8 +45,14 @@ MAX_SAMPLES = 5_000_000
 
 
 # --------------------------------------------------------------------- helpers
-def state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
-    """How large each (shifted) state gets during a move of length ``T`` (for scaling)."""
+def lp_state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
+    """How large each (shifted) state gets during a move of length ``T``: the unit of LP variables.
+
+    A coarse cousin of :func:`.reachable_set.state_scale` (the scale final-state
+    errors are judged against), kept apart on purpose: the LPs' conditioning
+    depends on it, and with the finer error scale HiGHS fails on the 1 kHz
+    limited LP of ``bench/fuel_limits.py`` (status 4, solve error).
+    """
     s = np.abs(x0) + u_max * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
     return np.where(s > 0.0, s, 1.0)
 
@@ -189,7 +195,7 @@ def min_fuel_lp(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: fl
     """
     G = sample_vectors(system, K, dt)
     w = -system.expm_x(K * dt, x0)
-    scale = state_scale(system, x0, um, K * dt)
+    scale = lp_state_scale(system, x0, um, K * dt)
     result = None
     if nu_guess is not None:
         levels = _levels_from(G, nu_guess, dt)

@@ -63,7 +63,7 @@ from scipy.signal import fftconvolve
 
 from .boundary import MoveProblem
 from .errors import GoalError, SolverError
-from .fuel_lp import HIGHS_OPTIONS, correct_arrival, sample_vectors, state_scale
+from .fuel_lp import HIGHS_OPTIONS, correct_arrival, lp_state_scale, sample_vectors
 from .limit_checks import Cut, Limits
 from .modal_response import ModalResponse
 from .sparse_rows import SparseRows
@@ -147,7 +147,7 @@ class _KData:
         self.g = sample_vectors(sysm, K + 1, dt)  # g_j = e^{A j dt} Gamma(dt)
         self.xf = sysm.expm_x_many(dt * np.arange(K + 1), lp.x0)  # free response at every sample
         self.w = -self.xf[K]
-        self.sc = state_scale(sysm, lp.x0, lp.um, K * dt)
+        self.sc = lp_state_scale(sysm, lp.x0, lp.um, K * dt)
         self.blk = []
         for b in lp.blocks:
             d = len(b.idx)

@@ -35,7 +35,7 @@ import numpy as np
 
 from .boundary import MoveProblem
 from .errors import SolverError
-from .fuel_lp import T_STAR_RTOL, check_move_time, min_fuel_lp, state_scale
+from .fuel_lp import T_STAR_RTOL, check_move_time, lp_state_scale, min_fuel_lp
 from .modal_response import ModalResponse
 from .profile import BangBangProfile
 from .simulation import PiecewiseConstant, simulate
@@ -240,7 +240,7 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
     """Damped Newton ascent on the concave dual ``d(nu)``; the result is checked by :func:`_assemble`."""
     um = problem.u_max
     w = -system.expm_x(T, x0)
-    s = state_scale(system, x0, um, T)
+    s = lp_state_scale(system, x0, um, T)
     ev = _dual_eval(system, nu, w, T, um)
     best = (float(np.max(np.abs(ev.grad / s))), nu, ev)
     stalled = 0
