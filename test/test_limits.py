@@ -20,6 +20,7 @@ from flexmotion_ros.core import (
     ModalModel,
     PiecewiseConstant,
     config_from_parameters,
+    limit_lp,
     motion_to_rest,
     plan_zoh,
     rest_to_rest,
@@ -27,7 +28,6 @@ from flexmotion_ros.core import (
     simulate_samples,
     state_to_rest,
 )
-from flexmotion_ros.core import limit_lp
 from flexmotion_ros.core import limits as limits_mod
 from flexmotion_ros.core.errors import FlexmotionError, GoalError
 from flexmotion_ros.core.limit_checks import Limits, deflection_peaks

@@ -31,8 +31,8 @@ from .errors import GoalError, SolverError
 from .modal_response import ModalResponse
 from .model import check_positive
 from .profile import BangBangProfile, SampledProfile
-from .simulation import simulate_samples
-from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal
+from .sampled_check import verified_samples
+from .time_optimal import plan_time_optimal
 from .zoh import sample_vectors
 
 #: Accept a window LP when its duality gap on the full problem is below this (relative to the fuel).
@@ -72,57 +72,6 @@ def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.nda
         du, *_ = np.linalg.lstsq(G[idx].T, r, rcond=None)
         u[idx] += du
     return u
-
-
-def verified_samples(
-    problem: MoveProblem,
-    commands: np.ndarray,
-    dt: float,
-    method: str,
-    minimal: bool,
-    lower_bound_samples: int,
-    continuous=None,
-    extra: dict | None = None,
-    t0: float | None = None,
-) -> SampledProfile:
-    """A :class:`SampledProfile` after the exact (matrix-exponential) final-state and bound checks.
-
-    Raises
-    ------
-    SolverError
-        If the sequence misses the target (relative error above
-        ``FINAL_STATE_RTOL``) or exceeds ``u_max``: nothing is returned.
-    """
-    commands = np.asarray(commands, dtype=float)
-    states = simulate_samples(problem.model, problem.x0, commands, dt)
-    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
-    dev = states[-1] - target
-    centred = states - target
-    if problem.target is None:
-        dev, centred = dev[1:], centred[:, 1:]
-    scale = np.max(np.abs(centred), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
-    err = float(np.max(np.abs(dev))) if dev.size else 0.0
-    rel = float(np.max(np.abs(dev) / scale)) if dev.size else 0.0
-    peak = float(np.max(np.abs(commands))) if commands.size else 0.0
-    if not rel <= FINAL_STATE_RTOL:
-        raise SolverError(f"{method}: sampled sequence misses the target (relative final-state error {rel:.3e}); nothing is returned")
-    if peak > problem.u_max:
-        raise SolverError(f"{method}: sampled command {peak} exceeds u_max = {problem.u_max}; nothing is returned")
-    return SampledProfile(
-        problem=problem,
-        commands=commands,
-        dt=dt,
-        states=states,
-        final_state_error=err,
-        final_state_error_relative=rel,
-        minimal=minimal,
-        lower_bound_samples=int(lower_bound_samples),
-        continuous=continuous,
-        solve_time_s=(time.perf_counter() - t0) if t0 is not None else 0.0,
-        method=method,
-        extra=dict(extra or {}),
-    )
 
 
 def fuel_of_samples(commands: np.ndarray, dt: float) -> float:

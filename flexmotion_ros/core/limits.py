@@ -50,13 +50,13 @@ from dataclasses import dataclass, field
 
 from .boundary import MoveProblem
 from .errors import GoalError, SolverError
-from .fuel_lp import verified_samples
 from .limit_checks import Limits, check_limits
 from .limit_dual import dual_bound, lift, proves_infeasible
 from .limit_lp import LimitLP, LPSolution, Segments
 from .limit_structure import map_runs, solution_runs
 from .model import check_positive
 from .profile import SampledProfile
+from .sampled_check import verified_samples
 from .zoh import plan_zoh
 
 #: Give up (raise) beyond this many times the unlimited sample count.

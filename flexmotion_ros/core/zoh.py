@@ -42,8 +42,9 @@ from .errors import GoalError, SolverError
 from .modal_response import ModalResponse
 from .model import check_positive
 from .profile import BangBangProfile, SampledProfile
+from .sampled_check import verified_samples
 from .simulation import simulate_samples
-from .time_optimal import FINAL_STATE_RTOL, plan_time_optimal, state_scale
+from .time_optimal import plan_time_optimal, state_scale
 
 #: Relative slack on the bound in a proof of infeasibility (dual bound).
 BOUND_RTOL = 1e-12
@@ -222,28 +223,5 @@ def plan_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile |
 
 
 def finish_sampled(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:
-    states = simulate_samples(problem.model, problem.x0, cmds, dt)
-    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
-    dev = states[-1] - target
-    if problem.target is None:
-        dev = dev[1:]
-    system = ModalResponse(problem.model, problem.include_position)
-    scale = state_scale(system, problem.shifted_initial(), problem.u_max, max(cmds.size * dt, dt))
-    err = float(np.max(np.abs(dev)))
-    rel = float(np.max(np.abs(dev) / scale))
-    if not rel <= FINAL_STATE_RTOL or np.max(np.abs(cmds)) > problem.u_max:
-        raise SolverError(
-            f"sampled planner missed the target: relative final-state error {rel:.3e}; nothing is returned"
-        )
-    return SampledProfile(
-        problem=problem,
-        commands=cmds,
-        dt=dt,
-        states=states,
-        final_state_error=err,
-        final_state_error_relative=rel,
-        minimal=minimal,
-        lower_bound_samples=lower,
-        continuous=continuous,
-        solve_time_s=time.perf_counter() - t0,
-    )
+    """The exact check of :func:`~flexmotion_ros.core.sampled_check.verified_samples` for a ZOH optimum."""
+    return verified_samples(problem, cmds, dt, "time_optimal", minimal, lower, continuous, None, t0)
