@@ -31,6 +31,12 @@ def beam(n_modes: int) -> ModalModel:
     return chain([0.5] * (n_modes + 1), [400.0] * n_modes, [0.4] * n_modes, force_on=0).model
 
 
+def bench_move(n_modes: int, rigid_time: float):
+    """bench/planner_latency.py's move: the distance a rigid body covers in ``rigid_time`` (10 N)."""
+    model = beam(n_modes)
+    return rest_to_rest(model, 10.0, abs(model.b0) * 10.0 * rigid_time**2 / 4.0)
+
+
 def full_solver(problem, monkeypatch):
     with monkeypatch.context() as m:
         m.setattr(time_optimal, "FAST_PATH", False)
@@ -80,6 +86,38 @@ def test_a_wrong_structure_guess_is_corrected():
     assert p.extra["solver_path"] == "fast"
     assert p.extra["fast_path_candidates"] >= 2
     assert p.switch_times.size == 9
+
+
+@pytest.mark.parametrize(
+    ("problem", "candidates"),
+    [
+        # the smoothed co-state rounds off two very narrow blips (pairs of
+        # switches 1e-4 s apart): a Newton failure drops one pair, and the
+        # certificate's zeros put both back, one correction at a time; the
+        # corrected structures have as many switches as the first guess
+        # (13), which must not be mistaken for a cycle
+        pytest.param(bench_move(5, 1.0), 3, id="beam-5-modes-narrow-blips"),
+        # the first guess misplaces a blip and adds spurious pairs: only the
+        # finer-smoothing second guess leads to the optimum (19 switches)
+        pytest.param(bench_move(8, 5.0), 1, id="beam-8-modes-second-guess"),
+    ],
+)
+def test_hard_benchmark_moves_take_the_fast_path(problem, candidates, monkeypatch):
+    """bench/planner_latency.py: 5 modes, 0.833 m (1 s rigid) and 8 modes, 13.9 m (5 s rigid)."""
+    fast = plan_time_optimal(problem)
+    assert fast.extra["solver_path"] == "fast"
+    assert fast.extra["fast_path_candidates"] >= candidates
+    full = full_solver(problem, monkeypatch)
+    assert full.extra["solver_path"] == "full"
+    assert_same_optimum(fast, full)
+
+
+def test_without_the_second_guess_the_full_solver_runs(monkeypatch):
+    """The 8-mode move needs the finer-smoothing guess (else this test is vacuous)."""
+    monkeypatch.setattr(time_optimal, "FINE_SMOOTHING", 0.0)
+    p = plan_time_optimal(bench_move(8, 5.0))
+    assert p.extra["solver_path"] == "full"
+    assert p.certified
 
 
 @pytest.mark.parametrize(

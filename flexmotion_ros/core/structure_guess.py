@@ -35,6 +35,9 @@ from .switching import sample_grid
 
 #: Newton runs (first structure + edits) before the fast path gives up.
 MAX_TRIES = 4
+#: Two structures with the same first sign and number of switches, every
+#: switch within this (relative to ``T``) of the other's, are the same one.
+SAME_RTOL = 1e-3
 #: Two switches closer than this (relative to ``T``) where a Newton run
 #: failed are taken as a spurious pair merging.
 MERGE_RTOL = 1e-3
@@ -52,7 +55,9 @@ VERY_NEAR_ZERO = 1e-3
 Check = Callable[[np.ndarray, float, np.ndarray, np.ndarray], tuple[object | None, np.ndarray | None, float]]
 
 
-def newton_from_guess(sh: Shooting, nuh: np.ndarray, T: float, check: Check) -> object | None:
+def newton_from_guess(
+    sh: Shooting, nuh: np.ndarray, T: float, check: Check, tried: list[tuple[float, np.ndarray]] | None = None
+) -> object | None:
     """Certified extremal from the switch structure of a co-state guess, or None.
 
     Parameters
@@ -68,6 +73,9 @@ def newton_from_guess(sh: Shooting, nuh: np.ndarray, T: float, check: Check) -> 
         Certifies a converged candidate ``(nuh, T, roots, signs)`` (scaled
         co-state, duration in s, switch times-to-go in s, sign of ``S`` on
         each interval in time-to-go order); see :data:`Check`.
+    tried : list, optional
+        Structures ``(sign0, roots)`` already tried (by an earlier guess) and
+        not to be tried again; extended in place with this call's.
 
     Returns
     -------
@@ -75,12 +83,12 @@ def newton_from_guess(sh: Shooting, nuh: np.ndarray, T: float, check: Check) -> 
         What ``check`` accepted, or None if no structure tried led to it.
     """
     roots, sign0 = guess_structure(sh, nuh, T)
-    tried: set[tuple[int, float]] = set()
+    if tried is None:
+        tried = []
     for _ in range(MAX_TRIES):
-        key = (int(roots.size), float(sign0))
-        if key in tried:  # an edit led back to a structure that failed: stop cycling
-            return None
-        tried.add(key)
+        if any(_same_structure(roots, sign0, r, s, T) for s, r in tried):
+            return None  # back to a structure that failed (here or in an earlier guess): stop
+        tried.append((sign0, roots))
         ok, tau, nuh_r, T_r, _ = refine_switches(sh, roots, sign0, nuh, T)
         if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
             return None
@@ -159,6 +167,11 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
     pairs = np.array([[c - 0.25 * h, c + 0.25 * h] for c in centres]).reshape(-1, 2)
     pairs = pairs[(pairs[:, 0] > 0.0) & (pairs[:, 1] < T)].ravel()
     return (np.unique(np.concatenate([roots, pairs])) if pairs.size else roots), sign0
+
+
+def _same_structure(a: np.ndarray, sa: float, b: np.ndarray, sb: float, T: float) -> bool:
+    """Whether two switch structures are the same one (see :data:`SAME_RTOL`)."""
+    return sa == sb and a.size == b.size and bool(np.all(np.abs(a - b) <= SAME_RTOL * T))
 
 
 def _drop_merged(tau: np.ndarray, sign0: float, T: float) -> tuple[np.ndarray, float] | None:

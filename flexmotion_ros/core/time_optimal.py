@@ -69,6 +69,10 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 FINAL_STATE_RTOL = 1e-9
 #: Smoothing levels (relative to the mean |S|) of the warm-start stage.
 SMOOTHING = (0.02, 0.002)
+#: The fast path's second guess, if the first fails: smoothed inner problems at
+#: this finer level, from the warm start (sharper near-tangencies of ``S``:
+#: short blips of the optimum show).  0: no second guess.
+FINE_SMOOTHING = 2e-4
 #: A shifted state whose every entry is below this (state units) is at rest:
 #: no physical move is 1e-100 m, and squares of such numbers underflow.
 AT_REST = 1e-100
@@ -81,16 +85,18 @@ MAX_SWITCHES = 5000
 FAST_PATH = True
 
 
-def _smoothed_start(sh: Shooting, T_low: float, T_init: float) -> tuple[np.ndarray, float]:
+def _smoothed_start(
+    sh: Shooting, T_low: float, T_init: float, levels: tuple[float, ...] = SMOOTHING, nuh: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     """Co-state direction (scaled) and time (s) from smoothed inner problems.
 
     Cheap, robust and blind to the number of switches: decreasing smoothing
-    brings ``T`` close to the optimum.  The first stage of :func:`_solve`,
-    and the guess of the fast path.  Leaves ``sh`` unchanged.
+    (``levels``) brings ``T`` close to the optimum.  The first stage of
+    :func:`_solve`, and the guesses of the fast path.  ``nuh``: a warm start
+    (scaled), if any.  Leaves ``sh`` unchanged.
     """
     T = max(T_init, T_low, 1e-300)
-    nuh = None
-    for eps in SMOOTHING:
+    for eps in levels:
         lo, hi = T_low, math.inf
         for _ in range(12):
             nuh, m, dm = inner_smooth(sh, T, nuh, eps)
@@ -267,7 +273,8 @@ def _fast_path(problem, system, sh: Shooting, start, t0: float, T_low: float) ->
     """Guess, Newton, certify (:mod:`.structure_guess`); None if anything falls short.
 
     The switch-time Newton runs from the structure of the smoothed co-state
-    ``start``, skipping the exact inner problems.  Every candidate goes
+    ``start`` (then, if that fails, of a finer smoothing level:
+    :data:`FINE_SMOOTHING`), skipping the exact inner problems.  Every candidate goes
     through the same exact simulation and certificate as the full solver's
     result (:func:`_assemble`), and is kept only if the final-state check and
     the certificate's full sign test pass (not merely the gap to the rigid
@@ -276,6 +283,7 @@ def _fast_path(problem, system, sh: Shooting, start, t0: float, T_low: float) ->
     """
 
     candidates = 0
+    sh0 = copy.copy(sh)  # the scale of ``start``
 
     def check(nuh, T, roots, signs):
         nonlocal candidates
@@ -291,7 +299,15 @@ def _fast_path(problem, system, sh: Shooting, start, t0: float, T_low: float) ->
 
     try:
         nuh = rescale(sh, start[0], start[1])
-        profile = newton_from_guess(sh, nuh, start[1], check)
+        tried = []  # switch structures tried (not to be tried again)
+        profile = newton_from_guess(sh, nuh, start[1], check, tried)
+        if profile is None and FINE_SMOOTHING:
+            # a second guess from finer smoothing: short blips of the optimum
+            # that the first level rounds off show up as sign changes (a
+            # structure already tried is not tried again)
+            sh = copy.copy(sh0)
+            nuh, T = _smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0])
+            profile = newton_from_guess(sh, rescale(sh, nuh, T), T, check, tried)
     except Exception:  # noqa: BLE001 - whatever went wrong, the full solver decides
         return None
     if profile is not None:
