@@ -174,6 +174,7 @@ class PlannerNode(Node):
         self._status_lock = threading.Lock()
         self._plan_times: deque[float] = deque(maxlen=5)
         self._state = "idle"
+        self._planning = ""  # the request being planned ("" if none)
         self._last_error: str | None = None
         self._last: dict[str, Any] = {}
         self._target: float | None = self._position
@@ -192,7 +193,12 @@ class PlannerNode(Node):
         self.create_service(GetPlan, "~/move", self._on_move, callback_group=planning)
         self.create_service(GetPlan, "~/plan", self._on_plan, callback_group=planning)
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=planning)
-        self.create_timer(float(v["diagnostics_period_s"]), self.publish_diagnostics, callback_group=MutuallyExclusiveCallbackGroup())
+        # /diagnostics from its own thread, not an executor timer: the executor is
+        # single-threaded and a plan (seconds for a limited move at 1 kHz) would
+        # otherwise leave the status stale exactly when it matters
+        self._diag_period = float(v["diagnostics_period_s"])
+        self._diag_stop = threading.Event()
+        self._diag_thread = threading.Thread(target=self._diagnostics_loop, name="flexmotion-diagnostics", daemon=True)
 
         msg = messages.command(0.0)
 
@@ -222,13 +228,28 @@ class PlannerNode(Node):
             f"at {self._position:g}"
         )
         self.publish_diagnostics()
+        self._diag_thread.start()
 
     def destroy_node(self) -> None:
+        stop = getattr(self, "_diag_stop", None)
+        if stop is not None:
+            stop.set()
+            if self._diag_thread.is_alive():
+                self._diag_thread.join(timeout=2.0)
         stream = getattr(self, "stream", None)
         if stream is not None:
             stream.stop()
             sys.setswitchinterval(self._switch_interval)
         super().destroy_node()
+
+    def _diagnostics_loop(self) -> None:
+        while not self._diag_stop.wait(self._diag_period):
+            try:
+                self.publish_diagnostics()
+            except Exception as exc:  # noqa: BLE001 -- a shutdown race (context gone) ends the loop
+                if not self._diag_stop.is_set():
+                    self.get_logger().warning(f"/diagnostics: {type(exc).__name__}: {exc}")
+                return
 
     # ------------------------------------------------------------- parameters
     def _values(self) -> dict[str, Any]:
@@ -307,6 +328,8 @@ class PlannerNode(Node):
         """
         t_req = time.monotonic()
         with self._plan_lock:
+            with self._status_lock:
+                self._planning = source
             try:
                 out = self._plan_locked(target, execute, source, t_req)
             except (FlexmotionError, SolverError) as exc:
@@ -314,6 +337,9 @@ class PlannerNode(Node):
             except Exception as exc:  # noqa: BLE001 -- keep serving whatever a method raises
                 self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")
                 return self._refuse(source, f"{type(exc).__name__}: {exc}")
+            finally:
+                with self._status_lock:
+                    self._planning = ""
         if out.ok and execute:
             with self._status_lock:
                 self._last_error = None
@@ -456,12 +482,13 @@ class PlannerNode(Node):
     def status(self) -> tuple[int, str, dict[str, Any]]:
         """``(level, message, values)`` of the status on /diagnostics."""
         with self._status_lock:
-            state, err, last, target = self._state, self._last_error, dict(self._last), self._target
+            state, err, last, target, planning = self._state, self._last_error, dict(self._last), self._target, self._planning
         level = DiagnosticStatus.ERROR if err else DiagnosticStatus.OK
         level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
         message = f"error: {err}" if err else state
         values: dict[str, Any] = {
             "state": state,
+            "planning": planning,  # the request being planned right now ("" if none)
             "last_error": err or "",
             "target": target if target is not None else float("nan"),
             "position_at_rest": self._position,
