@@ -15,6 +15,7 @@ import os
 import random
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from typing import Any
 
@@ -137,19 +138,22 @@ class Ros:
         self.nodes: list[Node] = []
         self.executors: list[SingleThreadedExecutor] = []
         self._threads: list[threading.Thread] = []
+        self.errors: list[str] = []  # exceptions that ended a node's executor (a callback raised)
+        self._closing = False
         self.probe = self.add(Probe(self.context))
 
-    @staticmethod
-    def _spin(executor: SingleThreadedExecutor) -> None:
+    def _spin(self, executor: SingleThreadedExecutor) -> None:
         try:
             executor.spin()
-        except Exception as exc:  # noqa: BLE001 -- a shutdown race may end the spin; say so
-            print(f"executor stopped: {exc!r}")
+        except Exception:  # noqa: BLE001 -- the node went deaf: reported by wait_for and at teardown
+            if not self._closing:  # not the shutdown race of close() (the executor's guard condition goes first)
+                self.errors.append(traceback.format_exc())
 
     def add(self, node: Node) -> Node:
         executor = SingleThreadedExecutor(context=self.context)
         executor.add_node(node)
         thread = threading.Thread(target=self._spin, args=(executor,), daemon=True)
+        thread.name = f"executor-{node.get_name()}"
         thread.start()
         self.nodes.append(node)
         self.executors.append(executor)
@@ -178,21 +182,44 @@ class Ros:
         return future.result()
 
     def close(self) -> None:
+        """Stop every executor, wait for its thread, tear down; fail on a callback error or a hung callback.
+
+        Jazzy's ``Executor.shutdown`` does not wait for a running callback: the
+        join does, and a thread still alive after it is a callback that hangs
+        (it would run on into the next test).
+        """
+        self._closing = True
         for executor in self.executors:
             executor.shutdown(timeout_sec=2.0)
+        hung = []
         for thread in self._threads:
-            thread.join(timeout=5.0)
+            thread.join(timeout=10.0)
+            if thread.is_alive():
+                hung.append(thread.name)
         for node in self.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        if hung or self.errors:
+            raise AssertionError(f"ROS teardown: callbacks still running in {hung}; executor errors: {self.errors}")
+
+
+#: The harness of the running test (wait_for reports its executor errors at once).
+_CURRENT: list[Ros] = []
 
 
 def wait_for(predicate: Callable[[], bool], timeout: float, what: str = "condition") -> None:
-    """Poll ``predicate`` until true; fail the test after ``timeout`` s (never hang)."""
+    """Poll ``predicate`` until true; fail the test after ``timeout`` s (never hang).
+
+    A callback that raised (and so ended its node's executor) fails the wait at
+    once with its traceback, instead of a time-out later.
+    """
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if predicate():
             return
+        for r in _CURRENT:
+            if r.errors:
+                raise AssertionError(f"a node's executor stopped while waiting for {what}:\n{r.errors[0]}")
         time.sleep(0.01)
     raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
@@ -200,9 +227,11 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str = "conditi
 @pytest.fixture
 def ros():
     r = Ros()
+    _CURRENT.append(r)
     try:
         yield r
     finally:
+        _CURRENT.remove(r)
         r.close()
 
 
