@@ -220,7 +220,8 @@ def test_a_coarse_level_that_cannot_steer_a_mode_is_skipped():
     limits = Limits(velocity_max=0.35)
     r = plan_limited(problem, 40.0, limits, plan_zoh(problem, 40.0))
     check_every_limit(problem, r, limits)
-    assert r.minimal and 10.0 in r.extra["levels_hz"]
+    assert r.minimal and r.extra["skipped_levels_hz"] == [10.0] and 10.0 not in r.extra["levels_hz"]
+    assert r.extra["levels_hz"][-1] == 40.0
 
 
 @pytest.mark.parametrize("rate, frac", [(4.0, 0.5), (4.0, 0.7), (5.0, 0.5)])

@@ -449,7 +449,8 @@ class LimitLP:
         kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=HIGHS_OPTIONS)
         res = linprog(cost, method=method, **kw)
         if res.status not in (0, 2) and method != "highs":  # the interior-point method gave up: simplex
-            res = linprog(cost, method="highs", **kw)
+            method = "highs"
+            res = linprog(cost, method=method, **kw)
         verdict = "dual simplex" if method == "highs" else "interior point"
         if res.status == 2 and method != "highs":
             # "infeasible" decides proofs: confirmed by the simplex method, within a time limit (on a

@@ -132,7 +132,9 @@ class _Level:
     """Probes ``t(K)`` at one rate: every sample free, or windows around a reference structure.
 
     ``t(K)`` from a window LP is an upper bound on ``t*(K)`` (a restriction);
-    ``t(K) <= 1`` shows ``K`` feasible.  Nothing here claims infeasibility.
+    ``t(K) <= 1`` shows ``K`` feasible.  No bound here claims a count
+    infeasible (that is :func:`_prove`'s job); only a rate at which the target
+    cannot be reached at all raises :class:`Unreachable`.
     """
 
     def __init__(self, problem: MoveProblem, rate: float, limits: Limits, K_cap: int, lp: LimitLP | None = None,
@@ -170,9 +172,11 @@ class _Level:
             if sol is None:  # no windows, or still none: every sample free (seconds at 1 kHz)
                 sol = self.lp.solve(K)
             if sol is None:
+                m = self.lp.model
+                turns = ", ".join(f"{w / self.rate / math.pi:.6g}" for w in m.omega)
                 raise Unreachable(
-                    f"limited planner: no {K}-sample sequence at {self.rate:g} Hz reaches the target "
-                    "(a mode is not steerable at this sampling rate)"
+                    f"limited planner: no {K}-sample sequence at {self.rate:g} Hz reaches the target: a mode "
+                    f"whose omega / rate_hz is a multiple of pi cannot be steered at this rate (omega_i / (pi rate_hz): {turns})"
                 )
             self.sols[K] = sol
             self.t[K] = sol.t
@@ -260,7 +264,14 @@ PROOF_HIGHS = "HiGHS infeasible verdict"
 
 
 def _prove(level: _Level, K: int) -> bool | str | None:
-    """Is ``K`` proved infeasible?  The proof kind if so; False: ``K`` turned out feasible; None: not proved."""
+    """Is ``K`` proved infeasible?  The proof kind if so; False: ``K`` turned out feasible; None: not proved.
+
+    In order: the weak-duality bound of the probe's LP (lifted to every sample
+    if it was a window LP), the same from wider windows, and last the
+    feasibility LP over every sample with the limits loosened by ``LOOSEN``
+    (HiGHS's verdict).  The last step also runs when every sample was already
+    free: its scaled LP said ``t > 1`` but a dual bound too weak to prove it.
+    """
     lp = level.lp
     t = level.probe(K)
     if t <= 1.0:
@@ -350,7 +361,7 @@ def plan_limited(
     rates = [rate]
     while K0 * rates[0] / rate > FULL_SAMPLES:
         rates.insert(0, rates[0] / COARSE_FACTOR)
-    ref, times, solves = None, [], 0
+    ref, times, solves, skipped = None, [], 0, []
     level = None
     for r in rates:
         final = r == rate
@@ -364,6 +375,8 @@ def plan_limited(
             if final:
                 raise
             ref = None  # a coarse rate the user never asked for cannot steer a mode: skip it
+            skipped.append(r)
+            solves += level.lp.solves
             continue
         x = level.crossing()
         times.append((1.0 / r, (x if x is not None and K - 1 <= x <= K else K) / r))
@@ -414,5 +427,5 @@ def plan_limited(
         lp_solves=lp.solves + solves,
         cuts=len(lp.cuts),
         solve_time_s=time.perf_counter() - t0,
-        extra={"levels_hz": rates, "coarse_time_s": coarse_time, "lower_bound_proof": proof, "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K},
+        extra={"levels_hz": [r for r in rates if r not in skipped], "skipped_levels_hz": skipped, "coarse_time_s": coarse_time, "lower_bound_proof": proof, "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K},
     )

@@ -2,8 +2,10 @@
 
 Rows are added one at a time or in blocks of equal length; each row keeps a
 right-hand side, optional metadata ``(kind, k, index, sign)`` (which limit
-it is, so that dual values can be mapped back) and a time offset ``s`` (s)
-within its sample interval.  Single entries can be added to existing rows
+it is, so that dual values can be mapped back) and a stamp ``s``: in the
+primal LPs the time offset (s) of a cut row within its sample interval, in
+the dual of :mod:`.limit_dual` a position in time (samples) that orders the
+rows for a banded factorisation.  Single entries can be added to existing rows
 (the dual's columns are built row by row in :mod:`.limit_dual`).
 """
 
@@ -42,8 +44,8 @@ class SparseRows:
     def add_many(self, cols, vals, rhs=None, meta=None, s=0.0) -> None:
         """Rows with the same number of terms: ``cols``, ``vals`` of shape ``(rows, terms)``.
 
-        ``rhs`` per row (default 0); ``meta = (kind, k, index, sign)`` with ``k``
-        per row or shared; ``s`` per row or shared (s).
+        ``rhs`` per row or shared (default 0); ``meta = (kind, k, index, sign)``
+        with ``k`` per row or shared; ``s`` per row or shared.
         """
         cols = np.asarray(cols)
         m = cols.shape[0]
@@ -52,7 +54,7 @@ class SparseRows:
         self.r.append(np.repeat(self.n + np.arange(m), cols.shape[1]))
         self.c.append(cols.ravel().astype(int))
         self.v.append(np.asarray(vals, float).ravel())
-        self.b.append(np.zeros(m) if rhs is None else np.asarray(rhs, float))
+        self.b.append(np.broadcast_to(np.asarray(0.0 if rhs is None else rhs, float), (m,)).copy())
         if meta is None:
             md = np.tile(NO_META, (m, 1))
         else:
