@@ -53,8 +53,8 @@ def sample_grid(system, T: float, density: float = 1.0) -> np.ndarray:
     wmax = fastest_frequency(system)
     n = MIN_GRID_POINTS
     if wmax > 0.0:
-        n = max(n, int(math.ceil(T * wmax / math.pi * POINTS_PER_HALF_PERIOD)))
-    n = int(math.ceil(n * density))
+        n = max(n, math.ceil(T * wmax / math.pi * POINTS_PER_HALF_PERIOD))
+    n = math.ceil(n * density)
     return np.linspace(0.0, T, n + 1)
 
 
@@ -146,7 +146,11 @@ def isolate_roots(
     Local derivatives matter: for short moves ``S`` is a small difference of
     large terms, and global Lipschitz bounds would prove nothing.  Close
     clusters of zeros (a short blip between two samples, three zeros in one
-    cell), which sampling signs alone misses, are found this way.  ``order``
+    cell), which sampling signs alone misses, are found this way.  A sample
+    point (grid point or bisection midpoint) where ``|S|`` is at rounding
+    level is moved off it first: ``S`` there may round to exactly 0, and a
+    zero sign at a cell end would hide a sign change from both neighbouring
+    cells.  ``order``
     is ``K``: higher proves more cells without bisection, lower is cheaper
     per cell.
     """
@@ -165,7 +169,8 @@ def isolate_roots(
     D = np.array(system.switching(nu, grid, order=K))  # (K+1, len(grid))
     # a zero sitting on an interior grid point (symmetric profiles put one at
     # T/2) has a sign decided by rounding: move such points off it
-    noisy = np.flatnonzero(np.abs(D[0, 1:-1]) <= 1e3 * np.finfo(float).eps * mag0) + 1
+    noise = 1e3 * np.finfo(float).eps * mag0
+    noisy = np.flatnonzero(np.abs(D[0, 1:-1]) <= noise) + 1
     if noisy.size:
         grid = grid.copy()
         grid[noisy] -= (grid[noisy] - grid[noisy - 1]) / 3.0
@@ -208,6 +213,15 @@ def isolate_roots(
             break
         mid = 0.5 * (a + b)
         Dm = np.array(system.switching(nu, mid, order=K))
+        # likewise a midpoint on a zero (a switch at T/2 when the grid point
+        # there was dropped): S(mid) may round to exactly 0, and a zero sign
+        # at a cell end hides the sign change from both halves
+        for frac in (1.0 / 3.0, 2.0 / 3.0):
+            on_zero = np.flatnonzero(np.abs(Dm[0]) <= noise)
+            if not on_zero.size:
+                break
+            mid[on_zero] = a[on_zero] + frac * (b[on_zero] - a[on_zero])
+            Dm[:, on_zero] = np.array(system.switching(nu, mid[on_zero], order=K))
         a, b = np.concatenate([a, mid]), np.concatenate([mid, b])
         Da = np.concatenate([Da, Dm], axis=1)
         Sb = np.concatenate([Dm[0], Sb])
