@@ -1,9 +1,11 @@
 """The guess-Newton-certify fast path of ``plan_time_optimal`` (core.structure_guess).
 
 It must be taken on simple moves (that is what makes the planner fast), and
-it must never change the answer: whenever it is taken, or its guess is
-wrong, or it is sabotaged, the result equals the full solver's certified
-optimum.  The full solver is run by switching the fast path off
+it must give the same certified optimum as the full solver, to the
+certificate's precision (the two converge from different starts, so the
+last bits differ: durations and switch times agree to 1e-9 relative to
+``T``), whenever it is taken, or its guess is wrong, or it is sabotaged.
+The full solver is run by switching the fast path off
 (``time_optimal.FAST_PATH``).
 """
 
@@ -43,15 +45,20 @@ def full_solver(problem, monkeypatch):
         return plan_time_optimal(problem)
 
 
+#: Relative (to ``T``) agreement of two certified optima: durations and switch
+#: times (a 4-mode undamped motion-to-rest differed by 6.9e-10 T, both certified).
+SAME_RTOL = 1e-9
+
+
 def assert_same_optimum(fast, full):
     assert fast.certified and full.certified, (fast.certificate.message, full.certificate.message)
     assert fast.certificate.message == "ok"
-    assert abs(fast.duration - full.duration) <= 1e-9
+    tol = SAME_RTOL * full.duration
+    assert abs(fast.duration - full.duration) <= tol
     assert fast.switch_times.shape == full.switch_times.shape
-    assert np.max(np.abs(fast.switch_times - full.switch_times), initial=0.0) <= 1e-9
+    assert np.max(np.abs(fast.switch_times - full.switch_times), initial=0.0) <= tol
     assert np.array_equal(fast.levels, full.levels)
     assert fast.final_state_error_relative <= time_optimal.FINAL_STATE_RTOL
-    assert type(fast.certificate) is type(full.certificate)
 
 
 SIMPLE = [
@@ -140,25 +147,47 @@ def test_a_wrong_guess_still_returns_the_certified_optimum(problem, bad_guess, m
     full = full_solver(problem, monkeypatch)
     monkeypatch.setattr(structure_guess, "guess_structure", bad_guess)
     p = plan_time_optimal(problem)
-    assert p.extra["solver_path"] in ("fast", "full")
+    # a wrong guess is corrected or rejected by the certificate, never a crash
+    assert "fast_path_error" not in p.extra, p.extra["fast_path_error"]
     assert p.certified, p.certificate.message
-    assert abs(p.duration - full.duration) <= 1e-9
-    assert np.max(np.abs(p.switch_times - full.switch_times), initial=0.0) <= 1e-9
+    tol = SAME_RTOL * full.duration
+    assert abs(p.duration - full.duration) <= tol
+    assert np.max(np.abs(p.switch_times - full.switch_times), initial=0.0) <= tol
 
 
-def test_a_failing_fast_path_falls_back_to_the_full_solver(monkeypatch):
+@pytest.mark.parametrize(
+    ("module", "name"),
+    [
+        pytest.param(time_optimal, "newton_from_guess", id="newton_from_guess"),
+        pytest.param(structure_guess, "guess_structure", id="guess_structure"),
+        pytest.param(structure_guess, "refine_switches", id="refine_switches"),
+    ],
+)
+def test_a_failing_fast_path_falls_back_to_the_full_solver(module, name, monkeypatch):
+    """A bug in the fast path costs time, not the answer, and is recorded in ``extra``."""
     problem = rest_to_rest(beam(2), 10.0, 1.667)
     full = full_solver(problem, monkeypatch)
+    assert "fast_path_error" not in full.extra
 
     def broken(*args, **kwargs):
         raise FloatingPointError("sabotaged")
 
-    monkeypatch.setattr(time_optimal, "newton_from_guess", broken)
+    monkeypatch.setattr(module, name, broken)
     p = plan_time_optimal(problem)
     assert p.extra["solver_path"] == "full"
+    assert p.extra["fast_path_error"] == repr(FloatingPointError("sabotaged"))
     assert p.duration == full.duration
     assert np.array_equal(p.switch_times, full.switch_times)
+    assert np.array_equal(p.levels, full.levels)
     assert p.certified
+
+
+def test_a_working_fast_path_records_no_error():
+    p = plan_time_optimal(rest_to_rest(beam(2), 10.0, 1.667))
+    assert p.extra["solver_path"] == "fast"
+    assert p.extra["fast_path_candidates"] >= 1
+    assert "fast_path_error" not in p.extra
+    assert p.to_dict()["solver_path"] == "fast"
 
 
 def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch):
@@ -191,4 +220,25 @@ def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch
     p = plan_time_optimal(problem)
     assert len(calls) >= 2  # the fast path's candidate was certified (and rejected)
     assert p.extra["solver_path"] == "full"
-    assert p.certified and abs(p.duration - full.duration) <= 1e-9
+    assert p.certified and abs(p.duration - full.duration) <= SAME_RTOL * full.duration
+
+
+def test_the_fast_path_gives_up_beyond_max_switches(monkeypatch):
+    """Wie-Bernstein's optimum has 3 switches: with a limit of 2 the fast path declines."""
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    calls = []
+    real = structure_guess.refine_switches
+
+    def spy(sh, roots, *args, **kwargs):
+        calls.append(roots.size)
+        return real(sh, roots, *args, **kwargs)
+
+    monkeypatch.setattr(structure_guess, "refine_switches", spy)
+    monkeypatch.setattr(time_optimal, "MAX_SWITCHES", 2)
+    p = plan_time_optimal(problem)
+    assert p.extra["solver_path"] == "full"
+    assert "fast_path_error" not in p.extra
+    assert all(size <= 2 for size in calls)  # no Newton run on a structure over the limit
+    assert p.certified and p.switch_times.size == 3
+    monkeypatch.setattr(time_optimal, "MAX_SWITCHES", 3)
+    assert plan_time_optimal(problem).extra["solver_path"] == "fast"

@@ -57,6 +57,7 @@ from flexmotion_ros.core import (
     rest_to_rest,
     simulate,
     state_to_rest,
+    time_optimal,
 )
 
 MIN_SEPARATION = 1.05  # omega_{i+1} / omega_i
@@ -481,14 +482,31 @@ def check_continuous(problem: MoveProblem, profile) -> None:
     )
 
 
-def plan_and_check(problem: MoveProblem):
-    safe_note(describe(problem))
+def plan_and_check(problem: MoveProblem, fast_path: bool = True):
+    """Plan (with or without the planner's fast path) and check every property.
+
+    ``fast_path=False`` runs the full solver (``time_optimal.FAST_PATH``): the
+    fast path takes almost every random case, so without this the full
+    solver would only be exercised by the cases the fast path gives up on.
+    """
+    safe_note(describe(problem) + f"; FAST_PATH={fast_path}")
+    saved = time_optimal.FAST_PATH
+    time_optimal.FAST_PATH = fast_path
     try:
         profile = plan_time_optimal(problem)
     except SolverError as exc:  # a correct test: the planner must succeed on these
-        pytest.fail(f"SolverError: {exc}\n{describe(problem)}")
+        pytest.fail(f"SolverError: {exc}\n{describe(problem)}; FAST_PATH={fast_path}")
+    finally:
+        time_optimal.FAST_PATH = saved
+    if not fast_path:
+        assert profile.extra["solver_path"] != "fast"
     check_continuous(problem, profile)
     return profile
+
+
+#: The main properties run through both solver paths: the fast path (default;
+#: it falls back to the full solver when it cannot certify) and the full solver alone.
+BOTH_PATHS = pytest.mark.parametrize("fast_path", [True, False], ids=["fast-path", "full-solver"])
 
 
 # ------------------------------------------------------------- properties
@@ -525,6 +543,7 @@ HARD_4_MODES = ModalModel(
 )
 
 
+@BOTH_PATHS
 @settings(max_examples=40, **SETTINGS)
 @given(rest_to_rest_problems())
 @example(rest_to_rest(WB, 1.0, 1.0))
@@ -532,10 +551,13 @@ HARD_4_MODES = ModalModel(
 @example(rest_to_rest(WB, 1.0, 1e-3 * WB.natural_distance(1.0)))
 @example(rest_to_rest(HARD_4_MODES, 0.298656588518464, -0.0002150271133290702))
 @example(rest_to_rest(STRONG_FRICTION_4_MODES, 1.0, 3.8220418459220062))
-def test_rest_to_rest(problem):
-    plan_and_check(problem)
+# switch at T/2 on a bisection point of the certificate's root isolation
+@example(rest_to_rest(WB, 1.0, 32.09624297057221))
+def test_rest_to_rest(fast_path, problem):
+    plan_and_check(problem, fast_path)
 
 
+@BOTH_PATHS
 @settings(max_examples=30, **SETTINGS)
 @given(motion_to_rest_problems())
 @example(motion_to_rest(ModalModel(b0=-0.43), 1.0, 0.5))
@@ -563,12 +585,13 @@ def test_rest_to_rest(problem):
         -154.57875791698237,
     )
 )
-def test_motion_to_rest(problem):
-    profile = plan_and_check(problem)
+def test_motion_to_rest(fast_path, problem):
+    profile = plan_and_check(problem, fast_path)
     # the final position is free: velocity and modes at rest wherever it ends
     assert profile.final_state.size == problem.model.n_states
 
 
+@BOTH_PATHS
 @settings(max_examples=30, **SETTINGS)
 @given(state_to_rest_problems())
 @example(state_to_rest(ModalModel(b0=-0.43), 4.49, [-0.1097, 0.0042], None))
@@ -657,8 +680,8 @@ def test_motion_to_rest(problem):
         0.0,
     )
 )
-def test_state_to_rest(problem):
-    plan_and_check(problem)
+def test_state_to_rest(fast_path, problem):
+    plan_and_check(problem, fast_path)
 
 
 @pytest.mark.slow

@@ -36,6 +36,29 @@ class BangBangProfile:
         Pontryagin certificate.
     solve_time_s : float
         Wall time of the planner (s).
+    iterations : int
+        Work count of the time-optimal solver: evaluations of the exact
+        shooting function (final state and co-state Hessian of the convex
+        inner problem, ``Shooting.evaluate``) in its inner and outer
+        iterations and polish.  Usually 0 on the ``"fast"`` path (it skips
+        the exact inner problems) and always on ``"at_rest"`` and ``"rigid"``.
+    method : str
+        The planner (``"time_optimal"``).
+    extra : dict
+        Diagnostics of the planner, outside the guarantees:
+
+        ``solver_path`` : str
+            What produced the profile: ``"at_rest"`` (nothing to do),
+            ``"rigid"`` (the rigid body's optimum leaves every mode at rest),
+            ``"fast"`` (guess, switch-time Newton, certify:
+            :mod:`~flexmotion_ros.core.structure_guess`) or ``"full"`` (the
+            full solver).  Either way the profile passed the same checks.
+        ``fast_path_candidates`` : int
+            With ``"fast"``: converged extremals the fast path certified (1
+            plus structure corrections).
+        ``fast_path_error`` : str
+            With ``"full"``: ``repr`` of an exception raised in the fast path
+            (a bug there; the full solver answered instead).  Absent otherwise.
     """
 
     problem: MoveProblem
@@ -65,8 +88,8 @@ class BangBangProfile:
         return self.input()(t)
 
     def to_dict(self) -> dict:
-        """JSON-friendly summary."""
-        return {
+        """JSON-friendly summary (with ``solver_path`` if the planner recorded it)."""
+        out = {
             "method": self.method,
             "duration": float(self.duration),
             "switch_times": [float(t) for t in self.switch_times],
@@ -78,6 +101,9 @@ class BangBangProfile:
             "certificate": self.certificate.to_dict(),
             "solve_time_s": float(self.solve_time_s),
         }
+        if "solver_path" in self.extra:
+            out["solver_path"] = str(self.extra["solver_path"])
+        return out
 
 
 @dataclass

@@ -30,7 +30,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .reachable_set import Shooting
-from .switch_newton import _updated_structure, refine_switches
+from .switch_newton import refine_switches, updated_structure
 from .switching import sample_grid
 
 #: Newton runs (first structure + edits) before the fast path gives up.
@@ -56,7 +56,12 @@ Check = Callable[[np.ndarray, float, np.ndarray, np.ndarray], tuple[object | Non
 
 
 def newton_from_guess(
-    sh: Shooting, nuh: np.ndarray, T: float, check: Check, tried: list[tuple[float, np.ndarray]] | None = None
+    sh: Shooting,
+    nuh: np.ndarray,
+    T: float,
+    check: Check,
+    tried: list[tuple[float, np.ndarray]] | None = None,
+    max_switches: int | None = None,
 ) -> object | None:
     """Certified extremal from the switch structure of a co-state guess, or None.
 
@@ -76,6 +81,10 @@ def newton_from_guess(
     tried : list, optional
         Structures ``(sign0, roots)`` already tried (by an earlier guess) and
         not to be tried again; extended in place with this call's.
+    max_switches : int, optional
+        Give up on a structure with more switches than this (the planner's
+        ``time_optimal.MAX_SWITCHES``: its full solver refuses such moves
+        with a clear error).  None: no limit.
 
     Returns
     -------
@@ -86,6 +95,8 @@ def newton_from_guess(
     if tried is None:
         tried = []
     for _ in range(MAX_TRIES):
+        if max_switches is not None and roots.size > max_switches:
+            return None
         if any(_same_structure(roots, sign0, r, s, T) for s, r in tried):
             return None  # back to a structure that failed (here or in an earlier guess): stop
         tried.append((sign0, roots))
@@ -100,7 +111,7 @@ def newton_from_guess(
             if zeros is None:
                 return None
             # converged, but S changes sign elsewhere too: adopt its zeros
-            roots, sign0 = _updated_structure(tau, sign0, zeros, zsign0)
+            roots, sign0 = updated_structure(tau, sign0, zeros, zsign0)
         else:
             edited = _drop_merged(tau, sign0, T_r)
             if edited is None:

@@ -161,11 +161,11 @@ def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0:
             # sign test says, e.g. in a cluster of switches below rounding)
             signs = sign0 * (1.0 - 2.0 * (np.arange(roots_r.size + 1) % 2))
             return nuh_r, T_r, roots_r, signs, r
-        roots, sign0 = _updated_structure(roots_r, sign0, iso_roots, iso_sign0)
+        roots, sign0 = updated_structure(roots_r, sign0, iso_roots, iso_sign0)
     return None
 
 
-def _updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float):
+def updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float):
     """The switch structure to try after a converged but wrong one.
 
     New sign changes of ``S`` come in pairs (a dip through zero): keep the
