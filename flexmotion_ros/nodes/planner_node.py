@@ -28,7 +28,8 @@ Interfaces (standard types only)
     Predicted position, velocity and command per sample (:mod:`.messages`).
 ``/diagnostics`` (diagnostic_msgs/DiagnosticArray)
     ``idle`` / ``moving`` / ``error: <reason>``; the last plan's duration,
-    samples, method, certificate, planning time, stream timing.
+    samples, method, certificate, planning time, stream timing
+    (:mod:`.planner_status`).
 
 Preemption: a goal (or stop) during a move is planned from the state the
 timeline predicts at a sample ``k_s`` far enough ahead to cover the planning
@@ -58,7 +59,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.srv import GetPlan
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
@@ -82,11 +82,11 @@ from .parameters import (
     planner_specs,
     validating_callback,
 )
+from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .runner import run
 from .streaming import CommandStream, Segment
 
 NODE_NAME = "flexmotion_planner"
-DIAGNOSTIC_NAME = "flexmotion_planner: motion"
 #: Attempts to splice a preemption before giving up (the look-ahead doubles each time).
 SPLICE_ATTEMPTS = 4
 
@@ -171,13 +171,7 @@ class PlannerNode(Node):
         sys.setswitchinterval(min(self._switch_interval, max(5e-5, 0.2 / rate)))
 
         self._plan_lock = threading.Lock()  # one plan at a time: the timeline stays consistent
-        self._status_lock = threading.Lock()
         self._plan_times: deque[float] = deque(maxlen=5)
-        self._state = "idle"
-        self._planning = ""  # the request being planned ("" if none)
-        self._last_error: str | None = None
-        self._last: dict[str, Any] = {}
-        self._target: float | None = self._position
         self._sent_at_start = 0
         self._move_requested_at = 0.0
         #: Recently installed segments, oldest first (start index, plan): for tests and the demo.
@@ -185,7 +179,8 @@ class PlannerNode(Node):
 
         self.commands_publisher = self.create_publisher(Float64MultiArray, "commands", COMMAND_QOS)
         self._trajectory_pub = self.create_publisher(JointTrajectory, "~/planned_trajectory", LATCHED_QOS)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # /diagnostics from its own thread (started last), not an executor timer
+        self._status = StatusReporter(self, float(v["diagnostics_period_s"]), self._position, self._status_context)
 
         planning = MutuallyExclusiveCallbackGroup()
         self.create_subscription(Float64, "~/goal", self._on_goal, 10, callback_group=planning)
@@ -193,12 +188,6 @@ class PlannerNode(Node):
         self.create_service(GetPlan, "~/move", self._on_move, callback_group=planning)
         self.create_service(GetPlan, "~/plan", self._on_plan, callback_group=planning)
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=planning)
-        # /diagnostics from its own thread, not an executor timer: the executor is
-        # single-threaded and a plan (seconds for a limited move at 1 kHz) would
-        # otherwise leave the status stale exactly when it matters
-        self._diag_period = float(v["diagnostics_period_s"])
-        self._diag_stop = threading.Event()
-        self._diag_thread = threading.Thread(target=self._diagnostics_loop, name="flexmotion-diagnostics", daemon=True)
 
         msg = messages.command(0.0)
 
@@ -228,28 +217,17 @@ class PlannerNode(Node):
             f"at {self._position:g}"
         )
         self.publish_diagnostics()
-        self._diag_thread.start()
+        self._status.start()
 
     def destroy_node(self) -> None:
-        stop = getattr(self, "_diag_stop", None)
-        if stop is not None:
-            stop.set()
-            if self._diag_thread.is_alive():
-                self._diag_thread.join(timeout=2.0)
+        status = getattr(self, "_status", None)
+        if status is not None:
+            status.stop()
         stream = getattr(self, "stream", None)
         if stream is not None:
             stream.stop()
             sys.setswitchinterval(self._switch_interval)
         super().destroy_node()
-
-    def _diagnostics_loop(self) -> None:
-        while not self._diag_stop.wait(self._diag_period):
-            try:
-                self.publish_diagnostics()
-            except Exception as exc:  # noqa: BLE001 -- a shutdown race (context gone) ends the loop
-                if not self._diag_stop.is_set():
-                    self.get_logger().warning(f"/diagnostics: {type(exc).__name__}: {exc}")
-                return
 
     # ------------------------------------------------------------- parameters
     def _values(self) -> dict[str, Any]:
@@ -328,8 +306,7 @@ class PlannerNode(Node):
         """
         t_req = time.monotonic()
         with self._plan_lock:
-            with self._status_lock:
-                self._planning = source
+            self._status.set_planning(source)
             try:
                 out = self._plan_locked(target, execute, source, t_req)
             except (FlexmotionError, SolverError) as exc:
@@ -338,18 +315,15 @@ class PlannerNode(Node):
                 self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")
                 return self._refuse(source, f"{type(exc).__name__}: {exc}")
             finally:
-                with self._status_lock:
-                    self._planning = ""
+                self._status.set_planning("")
         if out.ok and execute:
-            with self._status_lock:
-                self._last_error = None
+            self._status.set_error(None)
             self.publish_diagnostics()
         return out
 
     def _refuse(self, source: str, reason: str) -> Outcome:
         self.get_logger().error(f"{source}: refused: {reason}")
-        with self._status_lock:
-            self._last_error = reason
+        self._status.set_error(reason)
         self.publish_diagnostics()
         return Outcome(False, reason)
 
@@ -431,10 +405,7 @@ class PlannerNode(Node):
     def _installed(self, seg: Segment, target: float | None, info: dict, source: str) -> None:
         self.installed.append(seg)
         self._position = float(seg.states[-1, 0])
-        with self._status_lock:
-            self._state = "moving"
-            self._target = target if target is not None else self._position
-            self._last = dict(info)
+        self._status.moving(target if target is not None else self._position, info)
         stamp = messages.to_time(self._ros_time_of(seg.start))
         self._trajectory_pub.publish(messages.planned_trajectory(seg.states, seg.commands, self.stream.dt, stamp, self._max_points))
         if seg.samples + 1 > self._max_points:
@@ -457,40 +428,20 @@ class PlannerNode(Node):
         rec = seg.info
         if isinstance(rec, MoveRecord) and rec.from_idle:
             self._sent_at_start = self.stream.samples_sent - 1
-            with self._status_lock:
-                self._last["goal_to_first_command_s"] = float(seg.started_at - rec.requested_at)
+            self._status.first_command(seg.started_at - rec.requested_at)
 
     def _on_move_finished(self, seg: Segment) -> None:
         n = self.stream.samples_sent - self._sent_at_start
         times = np.array(list(self.stream.sent_times)[-n:]) if n > 1 else np.empty(0)
         late = np.array(list(self.stream.lateness)[-n:]) if n > 1 else np.empty(0)
-        with self._status_lock:
-            self._state = "idle"
-            if times.size > 2:
-                periods = np.diff(times)
-                self._last.update(
-                    stream_samples=int(times.size),
-                    stream_period_median_ms=float(np.median(periods) * 1e3),
-                    stream_period_p99_ms=float(np.percentile(periods, 99) * 1e3),
-                    stream_period_max_ms=float(np.max(periods) * 1e3),
-                    stream_lateness_max_ms=float(np.max(late) * 1e3),
-                )
+        self._status.finished(times, late)
         self.get_logger().info(f"move finished, at rest at {self._position:.9g}")
         self.publish_diagnostics()
 
     # -------------------------------------------------------------- diagnostics
-    def status(self) -> tuple[int, str, dict[str, Any]]:
-        """``(level, message, values)`` of the status on /diagnostics."""
-        with self._status_lock:
-            state, err, last, target, planning = self._state, self._last_error, dict(self._last), self._target, self._planning
-        level = DiagnosticStatus.ERROR if err else DiagnosticStatus.OK
-        level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
-        message = f"error: {err}" if err else state
-        values: dict[str, Any] = {
-            "state": state,
-            "planning": planning,  # the request being planned right now ("" if none)
-            "last_error": err or "",
-            "target": target if target is not None else float("nan"),
+    def _status_context(self) -> dict[str, Any]:
+        """The node's own values of the status on /diagnostics (after state, planning, last_error, target)."""
+        return {
             "position_at_rest": self._position,
             "rate_hz": self._config.rate_hz,
             "method": self._config.method,
@@ -499,14 +450,14 @@ class PlannerNode(Node):
             "command_subscribers": self.commands_publisher.get_subscription_count(),
             "replan_lead_samples": self._lead_samples(),
         }
-        values.update({f"last_plan.{k}": v for k, v in last.items()})
-        return level, message, values
+
+    def status(self) -> tuple[int, str, dict[str, Any]]:
+        """``(level, message, values)`` of the status on /diagnostics."""
+        return self._status.status()
 
     def publish_diagnostics(self) -> None:
-        level, message, values = self.status()
-        self._diag_pub.publish(
-            messages.diagnostics(DIAGNOSTIC_NAME, self.get_fully_qualified_name(), level, message, values, self.get_clock().now().to_msg())
-        )
+        """Publish the status on /diagnostics now."""
+        self._status.publish()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,0 +1,163 @@
+"""The planner's status on ``/diagnostics``: :class:`StatusReporter`.
+
+Holds what the planner reports -- ``idle`` / ``moving`` / ``error: <reason>``,
+the request being planned, the target, the last plan's figures and its stream
+timing -- behind one lock, builds the ``(level, message, values)`` of the
+status, and publishes it on ``/diagnostics`` on request and periodically from
+its own thread.  The thread, not an executor timer: the planner's executor is
+single-threaded and a plan (seconds for a limited move at 1 kHz) would
+otherwise leave the status stale exactly when it matters.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.node import Node
+
+from . import messages
+
+DIAGNOSTIC_NAME = "flexmotion_planner: motion"
+
+
+class StatusReporter:
+    """The planner's motion status and its publication on ``/diagnostics``.
+
+    Creates the ``/diagnostics`` publisher on ``node`` and (not yet started)
+    the periodic publishing thread; :meth:`start` starts it, :meth:`stop`
+    ends it.  The state setters are thread-safe.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The planner: publisher, clock, logger and hardware id.
+    period_s : float
+        Period (s) of the status published from the thread.
+    target : float or None
+        The initial target (the initial position).
+    context : callable
+        Returns the node's own values of the status (position at rest, the
+        configuration's figures, subscribers, ...), in the order they appear
+        after ``state``, ``planning``, ``last_error`` and ``target``.
+    """
+
+    def __init__(self, node: Node, period_s: float, target: float | None, context: Callable[[], Mapping[str, Any]]) -> None:
+        self._node = node
+        self._context = context
+        self._lock = threading.Lock()
+        self._state = "idle"
+        self._planning = ""  # the request being planned ("" if none)
+        self._last_error: str | None = None
+        self._last: dict[str, Any] = {}
+        self._target: float | None = target
+        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._period = float(period_s)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="flexmotion-diagnostics", daemon=True)
+
+    # ------------------------------------------------------------------ thread
+    def start(self) -> None:
+        """Start publishing every ``period_s``."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """End the periodic publishing (waits up to 2 s for the thread)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self._period):
+            try:
+                self.publish()
+            except Exception as exc:  # noqa: BLE001 -- a shutdown race (context gone) ends the loop
+                if not self._stop.is_set():
+                    self._node.get_logger().warning(f"/diagnostics: {type(exc).__name__}: {exc}")
+                return
+
+    # ------------------------------------------------------------------- state
+    def set_planning(self, source: str) -> None:
+        """Mark the request being planned (``""``: none)."""
+        with self._lock:
+            self._planning = source
+
+    def set_error(self, reason: str | None) -> None:
+        """Set (or, with None, clear) the error the status reports."""
+        with self._lock:
+            self._last_error = reason
+
+    def moving(self, target: float | None, info: Mapping[str, Any]) -> None:
+        """A move was installed: state ``moving``, its target and plan figures.
+
+        Parameters
+        ----------
+        target : float or None
+            Where the move ends.
+        info : mapping
+            The plan's figures, reported as ``last_plan.<key>`` (replaces the previous ones).
+        """
+        with self._lock:
+            self._state = "moving"
+            self._target = target
+            self._last = dict(info)
+
+    def first_command(self, delay_s: float) -> None:
+        """Record the time (s) from the goal to its first command (a move from idle)."""
+        with self._lock:
+            self._last["goal_to_first_command_s"] = float(delay_s)
+
+    def finished(self, times: np.ndarray, lateness: np.ndarray) -> None:
+        """The move ended: state ``idle`` and its stream timing.
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            Monotonic send times (s) of the move's samples; the timing is
+            recorded only for more than 2.
+        lateness : numpy.ndarray
+            Their lateness (s) against their deadlines.
+        """
+        with self._lock:
+            self._state = "idle"
+            if times.size > 2:
+                periods = np.diff(times)
+                self._last.update(
+                    stream_samples=int(times.size),
+                    stream_period_median_ms=float(np.median(periods) * 1e3),
+                    stream_period_p99_ms=float(np.percentile(periods, 99) * 1e3),
+                    stream_period_max_ms=float(np.max(periods) * 1e3),
+                    stream_lateness_max_ms=float(np.max(lateness) * 1e3),
+                )
+
+    # ----------------------------------------------------------------- status
+    def status(self) -> tuple[int, str, dict[str, Any]]:
+        """``(level, message, values)`` of the status on /diagnostics."""
+        with self._lock:
+            state, err, last, target, planning = self._state, self._last_error, dict(self._last), self._target, self._planning
+        level = DiagnosticStatus.ERROR if err else DiagnosticStatus.OK
+        level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+        message = f"error: {err}" if err else state
+        values: dict[str, Any] = {
+            "state": state,
+            "planning": planning,  # the request being planned right now ("" if none)
+            "last_error": err or "",
+            "target": target if target is not None else float("nan"),
+        }
+        values.update(self._context())
+        values.update({f"last_plan.{k}": v for k, v in last.items()})
+        return level, message, values
+
+    def publish(self) -> None:
+        """Publish the status on /diagnostics now."""
+        level, message, values = self.status()
+        node = self._node
+        self._pub.publish(
+            messages.diagnostics(DIAGNOSTIC_NAME, node.get_fully_qualified_name(), level, message, values, node.get_clock().now().to_msg())
+        )
+
+
+__all__ = ["DIAGNOSTIC_NAME", "StatusReporter"]
