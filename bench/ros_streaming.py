@@ -81,7 +81,7 @@ def run_config(args, priority: int) -> dict:
             recv.append(t)
 
     def on_diag(msg) -> None:
-        st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME)
+        st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME, f"{ns}/flexmotion_planner")
         if st is not None:
             with lock:
                 diags.append({"message": st[1], **st[2]})

@@ -183,11 +183,11 @@ class _Demo:
                 states.append((messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), msg.effort[0]))
 
         def on_diag(msg) -> None:
-            st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME)
+            st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME, f"{self.namespace}/flexmotion_planner")
             if st is not None:
                 with lock:
                     status.update(level=st[0], message=st[1], values=st[2])
-            st = messages.diagnostic_values(msg, PLANT_DIAGNOSTIC_NAME)
+            st = messages.diagnostic_values(msg, PLANT_DIAGNOSTIC_NAME, f"{self.namespace}/flexmotion_plant")
             if st is not None:
                 with lock:
                     plant_status.update(st[2])

@@ -173,10 +173,17 @@ def diagnostics(name: str, hardware_id: str, level: int, message: str, values: M
     return arr
 
 
-def diagnostic_values(msg: DiagnosticArray, name: str | None = None) -> tuple[int, str, dict[str, str]] | None:
-    """``(level, message, values)`` of the first status (named ``name`` if given)."""
+def diagnostic_values(
+    msg: DiagnosticArray, name: str | None = None, hardware_id: str | None = None
+) -> tuple[int, str, dict[str, str]] | None:
+    """``(level, message, values)`` of the first status named ``name`` from ``hardware_id``, if given.
+
+    Our nodes set ``hardware_id`` to their fully qualified name: ``/diagnostics``
+    is one global topic, and another planner in the same DDS domain publishes
+    statuses with the same ``name``.
+    """
     for st in msg.status:
-        if name is None or st.name == name:
+        if (name is None or st.name == name) and (hardware_id is None or st.hardware_id == hardware_id):
             level = st.level[0] if isinstance(st.level, (bytes, bytearray)) else int(st.level)
             return level, st.message, {kv.key: kv.value for kv in st.values}
     return None

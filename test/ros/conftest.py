@@ -116,7 +116,7 @@ class Probe(Node):
         with self.lock:
             diags = list(self.diagnostics)
         for d in reversed(diags):
-            st = messages.diagnostic_values(d, "flexmotion_planner: motion")
+            st = messages.diagnostic_values(d, "flexmotion_planner: motion", f"{NAMESPACE}/flexmotion_planner")
             if st is not None:
                 return st
         return None
