@@ -31,6 +31,10 @@ of period ``2 pi / (omega_2 - omega_1)`` and the co-state's terms cancel to
 many digits.  5 % is tighter than any lumped model of a real structure
 needs (distinct physical modes are further apart) and keeps the problems
 within double precision.
+
+The independent computations (rigid-body minimum times, own simulation, weak
+duality) are in ``reference_solutions``; the rigid body's closed-form optimum is
+tested in ``test_time_optimal_rigid_body``.
 """
 
 from __future__ import annotations
@@ -40,29 +44,30 @@ import os
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, example, given, note, settings
+from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
-from hypothesis.errors import InvalidArgument
-from scipy.linalg import expm
-from scipy.optimize import brentq, linprog
+from reference_solutions import (
+    OPT_DELTA,
+    check_switching_signs,
+    final_error_relative,
+    proved_optimality,
+    rigid_min_time,
+    safe_note,
+)
 
 from flexmotion_ros.core import (
     ModalModel,
     MoveProblem,
-    PiecewiseConstant,
     SolverError,
-    final_state,
     motion_to_rest,
     plan_time_optimal,
     rest_to_rest,
-    simulate,
     state_to_rest,
     time_optimal,
 )
 
 MIN_SEPARATION = 1.05  # omega_{i+1} / omega_i
 FINAL_RTOL = 1e-8  # final-state error, each state relative to its excursion
-OPT_DELTA = 1e-3  # relative optimality that must be proved by weak duality (see proved_optimality)
 
 # No shrinking: a failing planner call can take minutes, and shrinking repeats it many times
 # (the failing example is printed unshrunk, with a line that rebuilds it).
@@ -161,14 +166,6 @@ def state_to_rest_problems(draw, **kw):
     return state_to_rest(model, u_max, x0, target)
 
 
-def safe_note(text: str) -> None:
-    """``hypothesis.note`` that also works outside a ``@given`` test."""
-    try:
-        note(text)
-    except InvalidArgument:
-        pass
-
-
 def describe(problem: MoveProblem) -> str:
     """A line that rebuilds the problem (for failure reports and repro scripts)."""
     m = problem.model
@@ -176,260 +173,6 @@ def describe(problem: MoveProblem) -> str:
         f"ModalModel(b0={m.b0!r}, c={m.c!r}, omega={m.omega!r}, zeta={m.zeta!r}, b={m.b!r}); "
         f"u_max={problem.u_max!r}; x0={problem.x0.tolist()!r}; target={problem.target!r}"
     )
-
-
-# ---------------------------------------------------- independent rigid time
-def _rigid_phase(
-    b0: float, c: float, v0: float, u: float, t: float
-) -> tuple[float, float]:
-    """Displacement and final velocity of ``p'' = c p' + b0 u`` over ``t`` from velocity ``v0``."""
-    if c == 0.0:
-        return v0 * t + 0.5 * b0 * u * t * t, v0 + b0 * u * t
-    x = c * t
-    em1 = math.expm1(x)  # e^{ct} - 1 without cancellation (c t is often ~1e-5)
-    v = v0 + v0 * em1 + b0 * u * em1 / c
-    return v0 * em1 / c + b0 * u * _expm1_minus_x(x) / (c * c), v
-
-
-def _expm1_minus_x(x: float) -> float:
-    """``e^x - 1 - x`` to full relative precision (a series where the difference cancels)."""
-    if abs(x) > 0.1:
-        return math.expm1(x) - x
-    term, total = x * x / 2.0, 0.0
-    for k in range(3, 30):
-        total += term
-        term *= x / k
-    return total
-
-
-def _stop_time(b0: float, c: float, v: float, u: float) -> float:
-    """Time for input ``u`` (opposing ``v``) to bring velocity ``v`` to zero."""
-    a = b0 * u  # acceleration sign opposes v
-    if c == 0.0:
-        return -v / a
-    # v(t) = (v + a/c) e^{ct} - a/c = 0
-    return -math.log1p(v * c / a) / c  # = log((a/c) / (v + a/c)) / c, without cancellation
-
-
-def rigid_min_time(
-    model: ModalModel, u_max: float, p: float, v: float, fixed_position: bool
-) -> float:
-    """Minimum time to bring the rigid body from ``(p, v)`` to rest (at 0 if ``fixed_position``).
-
-    At most one switch.  For each order (``sigma u_max`` then ``-sigma u_max``) the
-    second phase is the stop from the velocity reached, so the final position is a
-    continuous, monotone function of the first phase's length ``t1`` on the range
-    where the second phase can stop the body; its root is bracketed and refined.
-    """
-    b0, c = model.b0, model.c
-    if not fixed_position:
-        return 0.0 if v == 0.0 else _stop_time(b0, c, v, -math.copysign(u_max, b0 * v))
-    if p == 0.0 and v == 0.0:
-        return 0.0
-    a = abs(b0) * u_max
-    natural = max(abs(v) / a, math.sqrt(abs(p) / a))
-    best = math.inf
-    for sigma in (1.0, -1.0):
-        u1, u2 = sigma * u_max, -sigma * u_max
-        s = math.copysign(1.0, b0 * u1)  # direction the first phase pushes
-
-        def end(t1, u1=u1, u2=u2, s=s):
-            d1, v1 = _rigid_phase(b0, c, v, u1, t1)
-            if s * v1 <= 0.0:  # already stopped (or moving against s): no second phase
-                return p + d1, t1
-            t2 = _stop_time(b0, c, v1, u2)
-            return p + d1 + _rigid_phase(b0, c, v1, u2, t2)[0], t1 + t2
-
-        # the second phase can stop the body once s * v1 >= 0
-        t_lo = 0.0 if s * v >= 0.0 else _stop_time(b0, c, v, u1)
-        f_lo = end(t_lo)[0]
-        if s * f_lo > 0.0:
-            continue  # overshoots even with the shortest first phase
-        if f_lo == 0.0:
-            best = min(best, end(t_lo)[1])
-            continue
-        h = natural
-        while s * end(t_lo + h)[0] < 0.0:
-            h *= 2.0
-        t1 = brentq(lambda t: end(t)[0], t_lo, t_lo + h, xtol=1e-300, rtol=1e-15)
-        best = min(best, end(t1)[1])
-    return best
-
-
-# ----------------------------------------------------------- the checks
-def move_scale(
-    problem: MoveProblem, u: PiecewiseConstant
-) -> tuple[np.ndarray, np.ndarray]:
-    """Our own final state (absolute) and each state's excursion from the target during the move."""
-    T = u.duration
-    times = np.unique(np.concatenate([u.breaks, np.linspace(0.0, T, 201)]))
-    X = simulate(problem.model, problem.x0, u, times=times)
-    target = problem.model.rest_state(
-        problem.target if problem.target is not None else 0.0
-    )
-    dev = X - target
-    if problem.target is None:
-        dev = dev[:, 1:]
-    scale = np.max(np.abs(dev), axis=0)
-    return X[-1], np.where(scale > 0.0, scale, 1.0)
-
-
-def final_error_relative(problem: MoveProblem, u: PiecewiseConstant) -> float:
-    _, scale = move_scale(problem, u)
-    xT = final_state(problem.model, problem.x0, u)
-    target = problem.model.rest_state(
-        problem.target if problem.target is not None else 0.0
-    )
-    dev = xT - target
-    if problem.target is None:
-        dev = dev[1:]
-    return float(np.max(np.abs(dev) / scale))
-
-
-def shifted_system(problem: MoveProblem):
-    A, B = problem.model.A(), problem.model.B()
-    x0 = problem.x0.copy()
-    if problem.target is None:
-        return A[1:, 1:], B[1:], x0[1:]
-    x0[0] -= problem.target
-    return A, B, x0
-
-
-def check_switching_signs(problem: MoveProblem, profile) -> None:
-    """The certificate's co-state gives each level's sign: ``S(tau) = nu^T e^{A tau} B`` on a
-    dense grid (time-to-go ``tau = T - t``, our own expm) has the sign of the level."""
-    A, B, _ = shifted_system(problem)
-    T = profile.duration
-    nu = -np.asarray(profile.certificate.costate_final, float)
-    assert np.all(np.isfinite(nu)) and np.any(nu)
-    wmax = max(problem.model.omega) if problem.model.omega else 0.0
-    m = int(min(max(400, 16 * T * wmax / math.pi), 40000))
-    h = T / m
-    E_h = expm(A * h)
-    eB = B.copy()
-    S = np.empty(m + 1)
-    for k in range(m + 1):
-        S[k] = nu @ eB
-        eB = E_h @ eB
-    tau = h * np.arange(m + 1)
-    levels = np.asarray(profile.levels, float)
-    breaks = np.concatenate([[0.0], profile.switch_times, [T]])
-    t = T - tau
-    idx = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, levels.size - 1)
-    inner = breaks[1:-1]
-    dist = (
-        np.min(np.abs(t[:, None] - inner[None, :]), axis=1)
-        if inner.size
-        else np.full(m + 1, np.inf)
-    )
-    away = (dist > 2 * h) & (tau > 2 * h) & (tau < T - 2 * h)
-    big = np.abs(S) > 1e-9 * np.max(np.abs(S))
-    bad = away & big & (np.sign(S) != np.sign(levels[idx]))
-    assert not np.any(bad), (
-        f"co-state's switching function has the wrong sign at t = {t[bad][:5]}"
-    )
-
-
-def lower_bound_gap(
-    problem: MoveProblem,
-    T_short: float,
-    nu_hint: np.ndarray | None = None,
-    use_lp: bool = True,
-) -> float:
-    """Independent proof that ``T_short`` is too short (so ``T*`` is near-optimal).
-
-    Weak duality for continuous inputs: for ANY ``nu``, an input reaching the target
-    in ``T'`` satisfies ``nu^T (-e^{A T'} x0) <= u_max int_0^T' |nu^T e^{A tau} B| dtau``;
-    a ``nu`` violating it proves ``T'`` infeasible.  The integral is computed here
-    exactly (expm of the augmented matrix), cell by cell on a fine grid, each cell
-    split at the zero of ``nu^T e^{A tau} B`` when it changes sign.  Candidates for
-    ``nu``: ``nu_hint`` (the certificate's co-state), then the dual vector of a
-    phase-1 linear program over a fine zero-order hold on ``[0, T']``; if that LP
-    reaches the target, ``T*`` was not minimal and ``-inf`` is returned.
-
-    Returns the largest relative gap found (``> 0`` proves infeasibility).
-    """
-    A, B, x0 = shifted_system(problem)
-    n = A.shape[0]
-    um = problem.u_max
-    rate = max(
-        max(problem.model.omega, default=0.0), abs(problem.model.c)
-    )  # fastest time constant
-    N = int(min(max(1000, math.ceil(2.0 * T_short * rate)), 40000))
-    dt = T_short / N
-    aug = np.zeros((n + 1, n + 1))
-    aug[:n, :n] = A
-    aug[:n, n] = B
-
-    def phi_gamma(h):
-        Eh = expm(aug * h)
-        return Eh[:n, :n], Eh[:n, n]
-
-    Phi, Gam = phi_gamma(dt)
-    E = np.empty((N + 1, n, n))  # E[m] = e^{A m dt}
-    E[0] = np.eye(n)
-    for m in range(N):
-        E[m + 1] = Phi @ E[m]
-    w = -expm(A * T_short) @ x0
-
-    def gap(nu: np.ndarray) -> float:
-        nu = nu / np.max(np.abs(nu))
-        S = E @ B @ nu  # S at tau = m dt
-        R = np.einsum("j,mjk->mk", nu, E[:N])  # nu^T e^{A m dt}
-        cells = np.abs(R @ Gam)
-        for m in np.flatnonzero(
-            S[:-1] * S[1:] < 0.0
-        ):  # a zero inside the cell: split it there
-            r = R[m]
-            s0 = brentq(
-                lambda s, r=r: r @ (expm(A * s) @ B),
-                0.0,
-                dt,
-                xtol=1e-16 * dt,
-                rtol=1e-15,
-            )
-            G0 = phi_gamma(s0)[1]
-            cells[m] = abs(r @ G0) + abs(r @ (Gam - G0))
-        integral = um * float(np.sum(cells))
-        return (float(nu @ w) - integral) / max(integral, 1e-300)
-
-    best = -math.inf
-    if nu_hint is not None and np.all(np.isfinite(nu_hint)) and np.any(nu_hint):
-        best = gap(np.asarray(nu_hint, float))
-        if best > 0.0 or not use_lp:
-            return best
-    G = E[:N] @ Gam  # g_m: effect of the sample m steps before the end
-    scale = np.abs(x0) + um * np.sum(np.abs(G), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
-    res = linprog(
-        np.concatenate([np.zeros(N), np.ones(2 * n)]),
-        A_eq=np.hstack([(G / scale).T, np.eye(n), -np.eye(n)]),
-        b_eq=w / scale,
-        bounds=[(-um, um)] * N + [(0.0, None)] * (2 * n),
-        method="highs",
-    )
-    assert res.status == 0, res.message
-    if res.fun <= 1e-12:
-        return -math.inf  # a sampled input reaches the target in T_short
-    return max(best, gap(np.asarray(res.eqlin.marginals, float) / scale))
-
-
-def proved_optimality(problem: MoveProblem, profile) -> float:
-    """Smallest relative ``delta`` for which ``(1 - delta) T*`` is proved infeasible.
-
-    Feasibility is monotone in the time (arrive earlier, then hold at rest), so one
-    proof at ``(1 - delta) T*`` shows ``T*`` optimal to ``delta``.  The certificate's
-    co-state is tried first at small ``delta`` (where its first-order gap dominates);
-    the independent LP dual at ``OPT_DELTA`` last.  ``inf`` if nothing proves it.
-    """
-    T = profile.duration
-    nu_cert = -np.asarray(profile.certificate.costate_final, float)
-    for delta in (1e-6, 1e-5, 1e-4, OPT_DELTA):
-        if lower_bound_gap(problem, (1.0 - delta) * T, nu_cert, use_lp=False) > 0.0:
-            return delta
-    gap = lower_bound_gap(problem, (1.0 - OPT_DELTA) * T, None)
-    safe_note(f"LP weak-duality gap at (1 - {OPT_DELTA:g}) T*: {gap:.3e}")
-    return OPT_DELTA if gap > 0.0 else math.inf
 
 
 #: The planners' documented convention (``time_optimal.AT_REST``): a shifted state whose
@@ -698,115 +441,3 @@ def test_free_final_position_is_never_slower_than_a_fixed_one(problem, sign, shi
         MoveProblem(problem.model, problem.u_max, problem.x0, target)
     )
     assert other.duration >= p_free.duration * (1.0 - 1e-9)
-
-
-@pytest.mark.parametrize(
-    "b0, u_max, v, stop, T",
-    [
-        (1.0, 1.0, 1.0, 0.5, 1.0),
-        (1.0, 1.0, 10.0, 50.0, 10.0),
-        (0.5, 1.0, -1.0, -1.0, 2.0),
-        (-2.0, 0.25, 2.0, 4.0, 4.0),
-        (
-            1.0,
-            1.0,
-            56.23413251903491,
-            1581.13883008419,
-            56.23413251903491,
-        ),  # within rounding of the stop point
-    ],
-)
-def test_stop_exactly_where_the_free_stop_ends(b0, u_max, v, stop, T):
-    """Rigid body moving at ``v``: full braking stops it at ``v |v| / 2a`` after ``|v| / a``
-    (all exact in binary).  With that point as the target the optimum is the same
-    single-level profile: a degenerate but legitimate goal (e.g. 'stop here')."""
-    model = ModalModel(b0=b0)
-    free = plan_and_check(motion_to_rest(model, u_max, v))
-    assert free.duration == pytest.approx(T, rel=1e-12)
-    assert float(free.final_state[0]) == pytest.approx(stop, rel=1e-12)
-    fixed = plan_and_check(state_to_rest(model, u_max, [0.0, v], stop))
-    # a target off the stop point by d costs ~2 sqrt(d / a) more (square root: ill-conditioned)
-    a = abs(b0) * u_max
-    d = abs(stop - v * abs(v) / (2 * a)) + 4 * np.finfo(float).eps * abs(stop)
-    assert abs(fixed.duration - T) <= 1e-9 * T + 2.0 * math.sqrt(d / a)
-    if stop == v * abs(v) / (2 * a):
-        assert fixed.switch_times.size == 0
-
-
-# ------------------------------------------- rigid body: closed-form optimum
-@st.composite
-def rigid_problems(draw):
-    b0 = draw(signs) * draw(log_uniform(0.1, 10.0))
-    c = 0.0 if draw(st.booleans()) else -draw(log_uniform(1e-2, 3.0))
-    model = ModalModel(b0=b0, c=c)
-    u_max = draw(log_uniform(0.1, 10.0))
-    size = draw(log_uniform(1e-3, 1e3))
-    kind = draw(st.sampled_from(["rest", "motion", "state"]))
-    if kind == "rest":
-        return rest_to_rest(model, u_max, draw(signs) * size)
-    v = draw(signs) * abs(b0) * u_max * size
-    if kind == "motion":
-        return motion_to_rest(model, u_max, v)
-    p = draw(units) * size
-    target = None if draw(st.booleans()) else draw(units) * size
-    return state_to_rest(model, u_max, [p, draw(units) * v], target)
-
-
-def closed_form_double_integrator(a: float, x: float, v: float) -> float:
-    """Textbook minimum time of ``x'' = a u``, ``|u| <= 1``, from ``(x, v)`` to the origin."""
-    if x + v * abs(v) / (2 * a) > 0:
-        return v / a + 2.0 * math.sqrt(x / a + v * v / (2 * a * a))
-    return -v / a + 2.0 * math.sqrt(-x / a + v * v / (2 * a * a))
-
-
-@settings(max_examples=40, **SETTINGS)
-@given(rigid_problems())
-@example(rest_to_rest(ModalModel(b0=1.0), 1.0, 1.0))
-@example(motion_to_rest(ModalModel(b0=-0.43), 1.0, 0.5))
-@example(state_to_rest(ModalModel(b0=2.0, c=-0.5), 1.0, [0.3, -4.0], None))
-@example(rest_to_rest(ModalModel(b0=1.0, c=-1.0), 1.0, 1000.0))
-@example(rest_to_rest(ModalModel(b0=1.0, c=-1.0), 0.1, 1000.0))
-def test_rigid_body_closed_form_minimum_time(problem):
-    m, um = problem.model, problem.u_max
-    a = abs(m.b0) * um
-    fixed = problem.target is not None
-    x = problem.shifted_initial() if fixed else None
-    p, v = (float(x[0]), float(x[1])) if fixed else (0.0, float(problem.x0[1]))
-    if m.c == 0.0:
-        if fixed:
-            s = math.copysign(1.0, m.b0)  # u -> sign(b0) u makes the gain positive
-            T_ref = closed_form_double_integrator(a, s * p, s * v)
-        else:
-            T_ref = abs(v) / a
-    elif not fixed:
-        T_ref = math.log1p(-m.c * abs(v) / a) / -m.c
-    else:
-        T_ref = rigid_min_time(m, um, p, v, True)
-    profile = plan_and_check(problem)
-    assert profile.duration == pytest.approx(T_ref, rel=1e-9, abs=1e-12)
-    assert profile.switch_times.size <= 1
-
-
-def test_rigid_min_time_helper_matches_the_textbook_formula():
-    """The helper used as the independent lower bound, checked against the closed form."""
-    m = ModalModel(b0=-2.0)
-    for p, v in [(1.0, 0.0), (-3.0, 2.0), (0.5, -7.0), (0.0, 1.0)]:
-        assert rigid_min_time(m, 0.5, p, v, True) == pytest.approx(
-            closed_form_double_integrator(1.0, -p, -v), rel=1e-12
-        )
-    damped = ModalModel(b0=1.0, c=-1.0)
-    T = rigid_min_time(damped, 1.0, -1.0, 0.0, True)
-    assert T > 2.0  # friction makes it slower than the undamped optimum, 2 s
-    # our own simulation: some one-switch input of length T reaches rest at the target...
-
-    def v_end(t1, T):
-        return final_state(
-            damped, [-1.0, 0.0], PiecewiseConstant.from_switches([t1], [1.0, -1.0], T)
-        )
-
-    t1 = brentq(lambda t: v_end(t, T)[1], 1e-9, T - 1e-9, xtol=1e-15)
-    assert abs(v_end(t1, T)[0]) < 1e-12
-    # ...and none of length 0.999 T does (velocity zero leaves the position short)
-    Ts = 0.999 * T
-    t1s = brentq(lambda t: v_end(t, Ts)[1], 1e-9, Ts - 1e-9, xtol=1e-15)
-    assert v_end(t1s, Ts)[0] < -1e-4
