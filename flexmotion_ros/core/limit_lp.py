@@ -39,8 +39,8 @@ level, or follow a slew ramp.  :class:`Segments` says which samples are free
 variables and which share one *level* variable (a run; on a slew ramp the
 level plus ``t`` slew steps per sample).  Limited states are sparse chain
 variables only at *knots* (run ends and free samples): a run is crossed in
-one step with closed-form powers and step responses, never a dense
-``K x K`` matrix.  Limit rows inside runs are generated: after each solve
+one step with closed-form powers and step responses
+(:mod:`.limit_responses`), never a dense ``K x K`` matrix.  Limit rows inside runs are generated: after each solve
 the states at every sample are evaluated and violated rows are added.
 :meth:`Segments.all_free` gives the full problem.
 
@@ -54,17 +54,16 @@ one).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linprog
-from scipy.signal import fftconvolve
 
 from .boundary import MoveProblem
 from .errors import GoalError, SolverError
-from .fuel_lp import HIGHS_OPTIONS, correct_arrival, lp_state_scale, sample_vectors
+from .fuel_lp import HIGHS_OPTIONS, correct_arrival
 from .limit_checks import Cut, Limits
+from .limit_responses import Block, KData, block_states, deflection_row, limit_blocks
 from .modal_response import ModalResponse
 from .sparse_rows import SparseRows
 
@@ -132,36 +131,6 @@ class LPSolution:
     levels: np.ndarray
 
 
-@dataclass
-class _Block:
-    idx: list  # state indices (response coordinates)
-    D: np.ndarray  # LP variable = state / D
-    mode: int | None  # mode index (deflection limit) or None (velocity)
-
-
-class _KData:
-    """Per-``K`` closed forms: input responses, free response, powers of the limited blocks."""
-
-    def __init__(self, lp: LimitLP, K: int) -> None:
-        sysm, dt = lp.sys, lp.dt
-        self.g = sample_vectors(sysm, K + 1, dt)  # g_j = e^{A j dt} Gamma(dt)
-        self.xf = sysm.expm_x_many(dt * np.arange(K + 1), lp.x0)  # free response at every sample
-        self.w = -self.xf[K]
-        self.sc = lp_state_scale(sysm, lp.x0, lp.um, K * dt)
-        self.blk = []
-        for b in lp.blocks:
-            d = len(b.idx)
-            P = np.empty((K + 1, d, d))
-            for c, j in enumerate(b.idx):
-                e = np.zeros(sysm.n)
-                e[j] = 1.0
-                P[:, :, c] = sysm.expm_x_many(dt * np.arange(K + 1), e)[:, b.idx] * b.D[c] / b.D
-            gh = self.g[:, b.idx] * lp.um / b.D  # scaled block response to a unit (normalised) command
-            psi = np.concatenate([np.zeros((1, d)), np.cumsum(gh[:K], axis=0)])  # step response
-            R = np.concatenate([np.zeros((1, d)), np.cumsum(psi[:K], axis=0)])  # ramp response
-            self.blk.append((P, gh, psi, R))
-
-
 class LimitLP:
     """The limit LPs of one problem, rate and set of limits, for any ``K`` and :class:`Segments`."""
 
@@ -173,20 +142,13 @@ class LimitLP:
         self.model = problem.model
         self.sys = ModalResponse(problem.model, problem.include_position)
         self.x0 = problem.shifted_initial()
-        r = self.sys.r
-        self.blocks: list[_Block] = []
-        if limits.velocity_max is not None:
-            self.blocks.append(_Block([r - 1], np.array([limits.velocity_max]), None))
-        qmax = limits.deflection_max or ()
-        for i, qm in enumerate(qmax):
-            if math.isfinite(qm):
-                self.blocks.append(_Block([r + 2 * i, r + 2 * i + 1], np.array([qm, qm * self.model.omega[i]]), i))
+        self.blocks: list[Block] = limit_blocks(self.sys, limits, self.model.omega)
         self.slew = limits.slew_rate * dt / self.um if limits.slew_rate is not None else None
         self.cuts: list[Cut] = []
         self.solves = 0
         self.infeasible_verdicts = 0  # LPs HiGHS found infeasible
         self.infeasible_method = ""  # the HiGHS method that gave the last such verdict
-        self._kd: dict[int, _KData] = {}
+        self._kd: dict[int, KData] = {}
         self._rows: dict[int, list[set]] = {}  # generated rows inside runs, per K and block
         self._at_cache: dict = {}
         self._check_initial()
@@ -201,24 +163,19 @@ class LimitLP:
                     "initial_state", f"mode {b.mode} deflection {x[2 + 2 * b.mode]} exceeds limits.deflection_max[{b.mode}] = {b.D[0]}"
                 )
 
-    def kdata(self, K: int) -> _KData:
+    def kdata(self, K: int) -> KData:
+        """Closed forms at ``K`` samples (:class:`~flexmotion_ros.core.limit_responses.KData`; the last few cached)."""
         if K not in self._kd:
             if len(self._kd) >= 6:
                 self._kd.pop(next(iter(self._kd)))
-            self._kd[K] = _KData(self, K)
+            self._kd[K] = KData(self.sys, self.dt, self.x0, self.um, self.blocks, K)
         return self._kd[K]
 
     def at(self, s: float, mode: int) -> tuple[np.ndarray, float]:
         """Row of mode ``mode``'s ``q`` in ``e^{A s}`` (its 2x2 block) and in ``Gamma(s)``."""
         key = (s, mode)
         if key not in self._at_cache:
-            ix = self.sys.r + 2 * mode
-            row = np.empty(2)
-            for c in range(2):
-                e = np.zeros(self.sys.n)
-                e[ix + c] = 1.0
-                row[c] = self.sys.expm_x(s, e)[ix]
-            self._at_cache[key] = (row, float(self.sys.input_integral(np.array([s]))[0][ix]))
+            self._at_cache[key] = deflection_row(self.sys, s, mode)
         return self._at_cache[key]
 
     # ------------------------------------------------------------------ solve
@@ -493,14 +450,7 @@ class LimitLP:
 
     def block_states(self, K: int, u: np.ndarray) -> list[np.ndarray]:
         """Limited component (scaled by its limit) of every block at samples ``0..K`` (closed forms, FFT)."""
-        kd = self.kdata(K)
-        v = u / self.um
-        out = []
-        for bi, b in enumerate(self.blocks):
-            gh = kd.blk[bi][1][:, 0]
-            forced = fftconvolve(v, gh[:K])[: K]  # sample k+1: sum_{m<=k} gh_{k-m} v_m
-            out.append(np.concatenate([[0.0], forced]) + kd.xf[:, b.idx[0]] / b.D[0])
-        return out
+        return block_states(self.kdata(K), self.blocks, u, self.um)
 
     def _add_violated_rows(self, sol: LPSolution, rows: list[set]) -> bool:
         """Add rows at samples inside runs where a limited state exceeds ``t`` (local peaks); True if any."""
