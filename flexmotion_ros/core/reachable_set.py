@@ -306,6 +306,19 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     return nuh, f, dm
 
 
+def bracketed_step(T: float, m: float, dm: float, lo: float, hi: float) -> tuple[float, float, float]:
+    """Narrow the bracket ``[lo, hi]`` of the optimal time with ``m(T)``, then take :func:`next_time`.
+
+    ``m`` is non-decreasing in ``T``: ``m(T) < 1`` puts the root above ``T``,
+    otherwise at or below it.  Returns ``(T_next, lo, hi)`` (s).
+    """
+    if m < 1.0:
+        lo = max(lo, T)
+    else:
+        hi = min(hi, T)
+    return next_time(T, m, dm, lo, hi), lo, hi
+
+
 def next_time(T: float, m: float, dm: float, lo: float, hi: float) -> float:
     """One safeguarded Newton step on ``log m(T) = 0`` in ``log T``.
 
@@ -334,11 +347,7 @@ def outer_newton(inner, T_low: float, T: float, nuh, tol: float, max_outer: int 
         nuh, m, dm = inner(T, nuh)
         if abs(m - 1.0) <= tol:
             break
-        if m < 1.0:
-            lo = max(lo, T)
-        else:
-            hi = min(hi, T)
-        Tn = next_time(T, m, dm, lo, hi)
+        Tn, lo, hi = bracketed_step(T, m, dm, lo, hi)
         if abs(Tn - T) <= 1e-15 * T:
             break
         T = Tn

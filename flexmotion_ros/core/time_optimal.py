@@ -51,9 +51,9 @@ from .profile import BangBangProfile
 from .reachable_set import (
     POLISH_TOL,
     Shooting,
+    bracketed_step,
     inner_exact,
     inner_smooth,
-    next_time,
     outer_newton,
     polish,
     rescale,
@@ -106,11 +106,7 @@ def _smoothed_start(
             nuh, m, dm = inner_smooth(sh, T, nuh, eps)
             if m > 0.0 and abs(math.log(m)) < 1e-3:
                 break
-            if m < 1.0:
-                lo = max(lo, T)
-            else:
-                hi = min(hi, T)
-            T = next_time(T, m, dm, lo, hi)
+            T, lo, hi = bracketed_step(T, m, dm, lo, hi)
     return nuh, T
 
 
@@ -168,11 +164,7 @@ def _solve(
                 return found
         if gap <= 1e-11:
             break
-        if m < 1.0:
-            lo = max(lo, T)
-        else:
-            hi = min(hi, T)
-        T = next_time(T, m, dm, lo, hi)
+        T, lo, hi = bracketed_step(T, m, dm, lo, hi)
     # last resort: full-accuracy nested iteration, then the joint Newton polish
     nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11)
     nuh = rescale(sh, nuh, T)
