@@ -131,6 +131,15 @@ def move_scale(
     T = u.duration
     times = np.unique(np.concatenate([u.breaks, np.linspace(0.0, T, 201)]))
     X = simulate(problem.model, problem.x0, u, times=times)
+    _, scale = deviation_from_target(problem, X)
+    return X[-1], scale
+
+
+def deviation_from_target(problem: MoveProblem, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """States ``X`` (rows) minus the target's rest state, and each state's largest excursion (>0).
+
+    Without a target (final position free) the position column is dropped.
+    """
     target = problem.model.rest_state(
         problem.target if problem.target is not None else 0.0
     )
@@ -138,7 +147,7 @@ def move_scale(
     if problem.target is None:
         dev = dev[:, 1:]
     scale = np.max(np.abs(dev), axis=0)
-    return X[-1], np.where(scale > 0.0, scale, 1.0)
+    return dev, np.where(scale > 0.0, scale, 1.0)
 
 
 def final_error_relative(problem: MoveProblem, u: PiecewiseConstant) -> float:

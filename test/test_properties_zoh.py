@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from reference_solutions import deviation_from_target
 from scipy.linalg import expm
 from scipy.optimize import linprog
 from test_properties_time_optimal import (
@@ -186,14 +187,7 @@ def plan_and_check_zoh(problem: MoveProblem, rate: float, k_max: int | None = K_
     )
     # exact at the sample instants, by our own simulation
     X = simulate_samples(problem.model, problem.x0, cmds, dt)
-    target = problem.model.rest_state(
-        problem.target if problem.target is not None else 0.0
-    )
-    dev = X - target
-    if problem.target is None:
-        dev = dev[:, 1:]
-    scale = np.max(np.abs(dev), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
+    dev, scale = deviation_from_target(problem, X)
     rel = float(np.max(np.abs(dev[-1]) / scale))
     assert rel <= FINAL_RTOL, (
         f"own simulation: relative final-state error {rel:.3e} at sample {K}"
