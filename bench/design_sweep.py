@@ -39,10 +39,10 @@ if ARGS.blas > 0:
 
 import numpy as np
 
-from flexmotion_ros.core.builders import two_mass
 from flexmotion_ros.core.config import PlannerConfig
-from flexmotion_ros.core.design_problem import DesignObjective, DesignProblem, Task
-from flexmotion_ros.core.design_space import DesignParameter
+from flexmotion_ros.core.design.problem import DesignObjective, DesignProblem, Task
+from flexmotion_ros.core.design.space import DesignParameter
+from flexmotion_ros.core.model.builders import two_mass
 
 
 def _cpu() -> float:

@@ -37,13 +37,14 @@ from flexmotion_ros.core import (
     ModalModel,
     load_config,
     plan_time_optimal,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
 )
 from flexmotion_ros.core.errors import SolverError
-from flexmotion_ros.core.fixed_time import plan_fixed_time, plan_fixed_time_zoh
-from flexmotion_ros.core.friction_time_optimal import plan_time_optimal_friction
-from flexmotion_ros.core.friction_zoh import plan_friction_zoh
+from flexmotion_ros.core.friction.time_optimal import plan_time_optimal_friction
+from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
+from flexmotion_ros.core.sampled.fixed_time import plan_fixed_time_zoh
+from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 
 
 def timed(fn, *args):
@@ -73,7 +74,7 @@ def main() -> None:
     print("-" * len(head))
     for name, problem, forces in cases:
         best, t_c = timed(plan_time_optimal, problem)
-        zoh, t_z = timed(plan_zoh, problem, rate, best)
+        zoh, t_z = timed(plan_time_optimal_zoh, problem, rate, best)
         T0, K0 = best.duration, zoh.samples
         um = problem.u_max
         print(
@@ -83,7 +84,7 @@ def main() -> None:
         for F in forces:
             try:
                 prof, t_c = timed(plan_time_optimal_friction, problem, F)
-                sp, t_z = timed(plan_friction_zoh, problem, F, rate, prof)
+                sp, t_z = timed(plan_time_optimal_friction_zoh, problem, F, rate, prof)
             except SolverError as exc:
                 print(f"{name:18s} {'time_optimal_friction':22s} {F:10.3g} N  failed: {exc}")
                 continue

@@ -47,12 +47,17 @@ if ARGS.blas > 0:  # tiny matrices: BLAS threads only cost, and the machine is s
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from flexmotion_ros.core import ModalModel, plan_time_optimal, plan_zoh, rest_to_rest
-from flexmotion_ros.core.fuel_curve import fuel_time_curve
-from flexmotion_ros.core.fuel_lp import plan_min_fuel_zoh
-from flexmotion_ros.core.limit_checks import Limits
-from flexmotion_ros.core.limits import plan_limited
-from flexmotion_ros.core.min_fuel import plan_min_fuel
+from flexmotion_ros.core import (
+    ModalModel,
+    plan_time_optimal,
+    plan_time_optimal_zoh,
+    rest_to_rest,
+)
+from flexmotion_ros.core.constraints.limits import Limits
+from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.fuel.curve import fuel_time_curve
+from flexmotion_ros.core.fuel.lp import plan_min_fuel_zoh
+from flexmotion_ros.core.fuel.min_fuel import plan_min_fuel
 
 
 def timed(f, *a, **k):
@@ -71,7 +76,7 @@ def main() -> None:
     rate = ARGS.rate
     print(f"Wie-Bernstein, goal {ARGS.goal} m, u_max 1 N, rate {rate:g} Hz")
     to, t_to = timed(plan_time_optimal, problem)
-    z, t_z = timed(plan_zoh, problem, rate, to)
+    z, t_z = timed(plan_time_optimal_zoh, problem, rate, to)
     print(f"\n1. reference: T* = {to.duration:.6f} s ({t_to * 1e3:.0f} ms), ZOH {z.samples} samples "
           f"({z.duration:.3f} s, {t_z * 1e3:.0f} ms, fewest proved: {z.minimal})")
 
@@ -106,7 +111,7 @@ def main() -> None:
         ("all three", both),
     ]
     for name, lim in cases:
-        r, t = timed(plan_limited, problem, rate, lim, z)
+        r, t = timed(plan_limited_zoh, problem, rate, lim, z)
         print(row([name, r.sampled.samples, f"{r.added_time_s:.3f}", "proved" if r.minimal else f">={r.lower_bound_samples}",
                    r.lp_solves, r.cuts, f"{t:.1f}", r.extra["lower_bound_proof"]], w), flush=True)
 

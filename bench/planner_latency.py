@@ -12,7 +12,7 @@ modes) and a fixed set of rest-to-rest moves, prints one table:
   the smallest ``delta`` for which the certificate's co-state proves, by weak
   duality and exact expm integrals, that no input reaches the target in
   ``(1 - delta) T*`` ("T* exact to delta");
-* exact 1 kHz zero-order-hold optimum (``plan_zoh`` after the continuous
+* exact 1 kHz zero-order-hold optimum (``plan_time_optimal_zoh`` after the continuous
   plan): total latency median / p95, samples, final-state error;
 * a direct method users would otherwise reach for: CasADi + IPOPT, free final
   time ``T``, piecewise-constant control on ``N`` equal intervals, multiple
@@ -47,10 +47,10 @@ from flexmotion_ros.core import (
     chain,
     final_state,
     plan_time_optimal,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
 )
-from flexmotion_ros.core import simulation as _simulation
+from flexmotion_ros.core.simulation import exact as _simulation
 
 MODES = (1, 2, 3, 5, 8)
 #: Moves, as the rigid-body minimum time they would take (s); the 5 s one is the ZOH aim.
@@ -303,7 +303,7 @@ def main() -> None:
             delta = proved_delta(problem, prof) if prof.certified else math.inf
             reps_zoh = max(3, args.repeats // 4)
             t_zoh, sp = timed(
-                lambda pr=problem: plan_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh
+                lambda pr=problem: plan_time_optimal_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh
             )
             X = _simulation.simulate_samples(model, problem.x0, sp.commands, sp.dt)
             dev = X - model.rest_state(gamma)

@@ -47,10 +47,10 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from flexmotion_ros.core import load_config, rest_to_rest, simulate
-from flexmotion_ros.core.planning import plan_move
-from flexmotion_ros.core.shaped_profile import largest_level, shape
-from flexmotion_ros.core.shapers import design
-from flexmotion_ros.core.simulation import PiecewiseConstant, modal_amplitudes
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.shaping.shaped_profile import largest_level, shape
+from flexmotion_ros.core.shaping.shapers import design
+from flexmotion_ros.core.simulation.exact import PiecewiseConstant, modal_amplitudes
 
 SHAPERS = ["zv", "zvd", "ei", "um_zv", "um_zvd"]
 

@@ -16,7 +16,6 @@ from flexmotion_ros.core import (
     crane,
 )
 from flexmotion_ros.core.config import (
-    ConfigError,
     PlannerConfig,
     config_from_parameters,
     dump_parameters,
@@ -26,6 +25,7 @@ from flexmotion_ros.core.config import (
     unflatten,
     write_config,
 )
+from flexmotion_ros.core.errors import ConfigError
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
 MODEL = ModalModel(

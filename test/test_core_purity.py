@@ -116,8 +116,7 @@ def test_importing_the_core_does_not_import_ros():
         "names = [m.name for m in pkgutil.walk_packages(core.__path__, 'flexmotion_ros.core.')]\n"
         "for n in names:\n"
         "    importlib.import_module(n)\n"
-        "from flexmotion_ros.core.planning import load_methods\n"
-        "load_methods()\n"
+        "import flexmotion_ros.core.methods\n"
         "print(json.dumps({'modules': names, 'loaded': sorted(sys.modules)}))\n"
     )
     res = subprocess.run(

@@ -38,14 +38,14 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.config import read_parameter_file
-from flexmotion_ros.core.design import optimize_design, write_design
-from flexmotion_ros.core.design_problem import (
+from flexmotion_ros.core.design.optimize import optimize_design, write_design
+from flexmotion_ros.core.design.problem import (
     DesignProblem,
     RobustnessRequirement,
     Task,
     problem_from_parameters,
 )
-from flexmotion_ros.core.design_space import DesignParameter
+from flexmotion_ros.core.design.space import DesignParameter
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
 
 WB = ModalModel(b0=0.5, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])

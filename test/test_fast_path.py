@@ -20,9 +20,9 @@ from flexmotion_ros.core import (
     motion_to_rest,
     plan_time_optimal,
     rest_to_rest,
-    structure_guess,
-    time_optimal,
 )
+from flexmotion_ros.core.time_optimal import solver as time_optimal
+from flexmotion_ros.core.time_optimal import structure_guess
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
 DAMPED = ModalModel(b0=1.0, c=-0.3, omega=[3.0, 7.0], zeta=[0.1, 0.05], b=[0.8, -0.5])

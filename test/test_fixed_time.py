@@ -16,14 +16,15 @@ from flexmotion_ros.core import (
     config_from_parameters,
     motion_to_rest,
     plan_time_optimal,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
     simulate,
     simulate_samples,
 )
 from flexmotion_ros.core.errors import FlexmotionError
-from flexmotion_ros.core.fixed_time import plan_fixed_time, plan_fixed_time_zoh
-from flexmotion_ros.core.planning import plan_move
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.sampled.fixed_time import plan_fixed_time_zoh
+from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
 ROOT = Path(__file__).resolve().parents[1]
@@ -122,7 +123,7 @@ def test_sampled_arrives_at_the_requested_sample(wb5):
 def test_sampled_request_below_the_sampled_optimum_uses_the_fewest_samples():
     problem = rest_to_rest(WB, 1.0, 1.0)
     best = plan_time_optimal(problem)
-    fewest = plan_zoh(problem, 100.0, best)
+    fewest = plan_time_optimal_zoh(problem, 100.0, best)
     sp = plan_fixed_time_zoh(problem, best.duration, 100.0)
     assert sp.samples == max(round(best.duration * 100.0), fewest.samples)
     assert sp.extra["requested_samples"] == round(best.duration * 100.0)

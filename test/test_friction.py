@@ -27,19 +27,19 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
-from flexmotion_ros.core.friction import (
+from flexmotion_ros.core.friction.contact import (
     FrictionSystem,
     contact_at_coordinate,
     simulate_contact,
     simulate_coulomb,
 )
-from flexmotion_ros.core.friction_time_optimal import (
+from flexmotion_ros.core.friction.time_optimal import (
     plan_time_optimal_friction,
     rigid_friction_time,
 )
-from flexmotion_ros.core.friction_zoh import plan_friction_zoh
-from flexmotion_ros.core.planning import plan_move
-from flexmotion_ros.core.time_optimal import plan_time_optimal
+from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
 
@@ -327,7 +327,7 @@ def test_structure_change_is_followed_on_the_three_mode_beam():
 def test_sampled_friction_move_is_exact_and_bounded(wb_friction):
     prof = wb_friction[0.3]
     problem = prof.problem
-    sp = plan_friction_zoh(problem, 0.3, 100.0, prof)
+    sp = plan_time_optimal_friction_zoh(problem, 0.3, 100.0, prof)
     assert np.max(np.abs(sp.commands)) <= 1.0
     x = simulate_coulomb(WB, WB.rest_state(), sp.input(), 0.3, [sp.duration, sp.duration + 3.0])
     assert np.max(np.abs(x - WB.rest_state(1.0))) < 1e-11

@@ -20,20 +20,20 @@ from flexmotion_ros.core import (
     ModalModel,
     PiecewiseConstant,
     config_from_parameters,
-    limit_lp,
     motion_to_rest,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
     simulate,
     simulate_samples,
     state_to_rest,
 )
-from flexmotion_ros.core import limits as limits_mod
+from flexmotion_ros.core.constraints import lp as limit_lp
+from flexmotion_ros.core.constraints import planner as limits_mod
+from flexmotion_ros.core.constraints.limits import Limits, deflection_peaks
+from flexmotion_ros.core.constraints.planner import plan_limited_zoh
 from flexmotion_ros.core.errors import FlexmotionError, GoalError
-from flexmotion_ros.core.limit_checks import Limits, deflection_peaks
-from flexmotion_ros.core.limits import plan_limited
-from flexmotion_ros.core.planning import plan_move
-from flexmotion_ros.core.simulation import step_matrices
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.simulation.exact import step_matrices
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
 TWO = ModalModel(b0=1.0, c=-0.2, omega=[2.0, 5.0], zeta=[0.02, 0.05], b=[0.8, -0.5])
@@ -161,8 +161,8 @@ CASES = [
 def test_limits_hold_everywhere_and_fewest_proved(name, problem, limits):
     rate = 10.0
     dt = 1.0 / rate
-    unlimited = plan_zoh(problem, rate)
-    r = plan_limited(problem, rate, limits, unlimited)
+    unlimited = plan_time_optimal_zoh(problem, rate)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
     check_every_limit(problem, r, limits)
     K = r.sampled.samples
     assert K >= unlimited.samples and r.added_time_s == pytest.approx((K - unlimited.samples) * dt)
@@ -180,7 +180,7 @@ def test_coarse_levels_windows_and_lifted_proofs(name, limits):
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
     dt = 1.0 / rate
-    r = plan_limited(problem, rate, limits, plan_zoh(problem, rate))
+    r = plan_limited_zoh(problem, rate, limits, plan_time_optimal_zoh(problem, rate))
     assert len(r.extra["levels_hz"]) >= 2
     check_every_limit(problem, r, limits)
     K = r.sampled.samples
@@ -203,7 +203,7 @@ def test_last_resort_proof_is_the_full_feasibility_lp(monkeypatch, ipm_samples, 
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
     limits = Limits(deflection_max=(0.2,))
-    r = plan_limited(problem, rate, limits, plan_zoh(problem, rate))
+    r = plan_limited_zoh(problem, rate, limits, plan_time_optimal_zoh(problem, rate))
     K = r.sampled.samples
     assert r.minimal and r.extra["lower_bound_proof"] == f"{limits_mod.PROOF_HIGHS} ({method})"
     assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits)
@@ -218,7 +218,7 @@ def test_a_coarse_level_that_cannot_steer_a_mode_is_skipped():
     x0[4] = 1e-4
     problem = state_to_rest(model, 1.0, x0, 1.0)
     limits = Limits(velocity_max=0.35)
-    r = plan_limited(problem, 40.0, limits, plan_zoh(problem, 40.0))
+    r = plan_limited_zoh(problem, 40.0, limits, plan_time_optimal_zoh(problem, 40.0))
     check_every_limit(problem, r, limits)
     assert r.minimal and r.extra["skipped_levels_hz"] == [10.0] and 10.0 not in r.extra["levels_hz"]
     assert r.extra["levels_hz"][-1] == 40.0
@@ -229,9 +229,9 @@ def test_deflection_between_samples_coarse_rate(rate, frac):
     """omega dt ~ 1.5: the deflection peaks between samples; cuts keep it within the limit."""
     model = ModalModel(b0=1.0, omega=[6.0], zeta=[0.0], b=[1.0])
     problem = rest_to_rest(model, 1.0, 1.0)
-    unlimited = plan_zoh(problem, rate)
+    unlimited = plan_time_optimal_zoh(problem, rate)
     limits = Limits(deflection_max=(frac * float(np.max(np.abs(unlimited.states[:, 2]))),))
-    r = plan_limited(problem, rate, limits, unlimited)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
     check_every_limit(problem, r, limits)
     assert r.cuts > 0  # the sampled-only solution would overshoot between samples
     assert r.peaks["deflection"][0] > r.peaks["deflection_at_samples"][0]
@@ -247,19 +247,19 @@ def test_deflection_between_samples_coarse_rate(rate, frac):
 def test_each_limit_costs_time_and_together_at_least_the_worst():
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 10.0
-    unlimited = plan_zoh(problem, rate)
+    unlimited = plan_time_optimal_zoh(problem, rate)
     both = Limits(0.35, (0.2,), 4.0)
-    added = {n: plan_limited(problem, rate, both.only(n), unlimited).added_time_s for n in both.active}
-    total = plan_limited(problem, rate, both, unlimited).added_time_s
+    added = {n: plan_limited_zoh(problem, rate, both.only(n), unlimited).added_time_s for n in both.active}
+    total = plan_limited_zoh(problem, rate, both, unlimited).added_time_s
     assert all(a > 0.0 for a in added.values())
     assert total >= max(added.values()) - 1e-12
 
 
 def test_inactive_limits_cost_nothing():
     problem = rest_to_rest(WB, 1.0, 1.0)
-    unlimited = plan_zoh(problem, 10.0)
+    unlimited = plan_time_optimal_zoh(problem, 10.0)
     peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
-    r = plan_limited(problem, 10.0, Limits(velocity_max=2.0 * peak_v, slew_rate=1e6), unlimited)
+    r = plan_limited_zoh(problem, 10.0, Limits(velocity_max=2.0 * peak_v, slew_rate=1e6), unlimited)
     assert r.sampled.samples == unlimited.samples and r.added_time_s == 0.0 and r.minimal
 
 
@@ -293,14 +293,14 @@ def test_deflection_peaks_match_fine_simulation():
 )
 def test_bad_limits_are_named(limits, name):
     with pytest.raises(FlexmotionError) as info:
-        plan_limited(rest_to_rest(WB, 1.0, 1.0), 10.0, limits)
+        plan_limited_zoh(rest_to_rest(WB, 1.0, 1.0), 10.0, limits)
     assert info.value.parameter == name
     assert "got" in str(info.value)
 
 
 def test_initial_state_outside_limit_is_rejected():
     with pytest.raises(GoalError, match="velocity_max"):
-        plan_limited(motion_to_rest(WB, 1.0, 0.5), 10.0, Limits(velocity_max=0.3))
+        plan_limited_zoh(motion_to_rest(WB, 1.0, 0.5), 10.0, Limits(velocity_max=0.3))
 
 
 # ------------------------------------------------------------- properties
@@ -318,11 +318,11 @@ def test_property_random_models_and_limits(w, z, b, gamma, v_frac, q_frac, slew)
     model = ModalModel(b0=1.0, omega=[w], zeta=[z], b=[b])
     problem = rest_to_rest(model, 1.0, gamma)
     rate = 8.0
-    unlimited = plan_zoh(problem, rate)
+    unlimited = plan_time_optimal_zoh(problem, rate)
     peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
     peak_q = float(np.max(np.abs(unlimited.states[:, 2])))
     limits = Limits(v_frac * peak_v, (q_frac * peak_q,), slew)
-    r = plan_limited(problem, rate, limits, unlimited)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
     check_every_limit(problem, r, limits)
     # the planner's proofs include its cuts (deflection between samples): check them against a
     # relaxation of the continuous-time limit with 50 points per interval

@@ -25,17 +25,16 @@ from flexmotion_ros.core import (
     final_state,
     motion_to_rest,
     plan_time_optimal,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
     simulate_samples,
 )
-from flexmotion_ros.core.config import ConfigError
-from flexmotion_ros.core.errors import GoalError, SolverError
-from flexmotion_ros.core.fuel_curve import fuel_time_curve, sampled_fuel_curve
-from flexmotion_ros.core.fuel_lp import plan_min_fuel_zoh
-from flexmotion_ros.core.min_fuel import plan_min_fuel
-from flexmotion_ros.core.planning import plan_move
-from flexmotion_ros.core.simulation import step_matrices
+from flexmotion_ros.core.errors import ConfigError, GoalError, SolverError
+from flexmotion_ros.core.fuel.curve import fuel_time_curve, sampled_fuel_curve
+from flexmotion_ros.core.fuel.lp import plan_min_fuel_zoh
+from flexmotion_ros.core.fuel.min_fuel import plan_min_fuel
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.simulation.exact import step_matrices
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
 DAMPED = ModalModel(b0=1.0, c=-0.3, omega=[3.0, 7.0], zeta=[0.05, 0.02], b=[0.7, -0.4])
@@ -171,7 +170,7 @@ def test_move_time_below_optimum_is_rejected():
 )
 def test_sampled_optimum_equals_state_space_lp(problem, K):
     rate = 10.0
-    z = plan_zoh(problem, rate)
+    z = plan_time_optimal_zoh(problem, rate)
     K = max(K, z.samples)
     s = plan_min_fuel_zoh(problem, rate, K / rate)
     assert s.samples == K
@@ -221,7 +220,7 @@ def test_curve_monotone_with_exact_end_points():
     sampled = sampled_fuel_curve(problem, rate, longest, points=5, time_optimal=to)
     assert np.all(np.diff(sampled.fuel) <= 1e-12 * sampled.fuel[0])
     K_max = math.floor(longest * rate + 1e-9)
-    z = plan_zoh(problem, rate, to)
+    z = plan_time_optimal_zoh(problem, rate, to)
     free_time = min(
         state_space_fuel(WB, problem.x0, 1.0, 1.0, K, 1.0 / rate) for K in range(z.samples, K_max + 1, 7)
     )
@@ -254,7 +253,7 @@ def test_property_sampled_fuel(w, z, b, b0, gamma, factor):
     problem = rest_to_rest(model, 1.0, gamma)
     to = plan_time_optimal(problem)
     rate = 10.0
-    K = max(plan_zoh(problem, rate, to).samples, math.ceil(factor * to.duration * rate))
+    K = max(plan_time_optimal_zoh(problem, rate, to).samples, math.ceil(factor * to.duration * rate))
     s1 = plan_min_fuel_zoh(problem, rate, K / rate, to)
     s2 = plan_min_fuel_zoh(problem, rate, (K + 3) / rate, to)
     for s in (s1, s2):

@@ -7,7 +7,7 @@ import pytest
 from scipy.linalg import expm
 
 from flexmotion_ros.core import FlexmotionError, ModalModel, ModelError, rest_to_rest
-from flexmotion_ros.core.boundary import MoveProblem
+from flexmotion_ros.core.model.boundary import MoveProblem
 
 GOOD = {
     "b0": 0.5,

@@ -63,8 +63,8 @@ from flexmotion_ros.core import (
     plan_time_optimal,
     rest_to_rest,
     state_to_rest,
-    time_optimal,
 )
+from flexmotion_ros.core.time_optimal import solver as time_optimal
 
 MIN_SEPARATION = 1.05  # omega_{i+1} / omega_i
 FINAL_RTOL = 1e-8  # final-state error, each state relative to its excursion

@@ -1,4 +1,4 @@
-"""Property tests of the exact zero-order-hold optimum (``core.zoh.plan_zoh``).
+"""Property tests of the exact zero-order-hold optimum (``core.zoh.plan_time_optimal_zoh``).
 
 For random models and moves (rest-to-rest, motion-to-rest, state-to-rest) at
 low rates (5-50 Hz, so that the number of samples ``K`` stays small), checked
@@ -53,7 +53,7 @@ from flexmotion_ros.core import (
     SolverError,
     motion_to_rest,
     plan_time_optimal,
-    plan_zoh,
+    plan_time_optimal_zoh,
     rest_to_rest,
     simulate_samples,
     state_to_rest,
@@ -170,7 +170,7 @@ def plan_and_check_zoh(problem: MoveProblem, rate: float, k_max: int | None = K_
     safe_note(f"rate_hz={rate!r}")
     dt = 1.0 / rate
     try:
-        sp = plan_zoh(problem, rate, continuous)
+        sp = plan_time_optimal_zoh(problem, rate, continuous)
     except SolverError as exc:
         pytest.fail(
             f"sampled planner: SolverError: {exc}\n{describe(problem)}; rate_hz={rate!r}"

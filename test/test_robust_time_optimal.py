@@ -20,13 +20,13 @@ from flexmotion_ros.core import (
     rest_to_rest,
     simulate_samples,
 )
-from flexmotion_ros.core.robust_time_optimal import (
+from flexmotion_ros.core.sampled.robust import plan_robust_time_optimal_zoh
+from flexmotion_ros.core.simulation.exact import modal_amplitudes
+from flexmotion_ros.core.time_optimal.robust import (
     RobustModalResponse,
     check_order,
     plan_robust_time_optimal,
-    sample_robust,
 )
-from flexmotion_ros.core.simulation import modal_amplitudes
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
 
@@ -152,7 +152,7 @@ def test_three_mode_beam_and_motion_to_rest():
 def test_sampled_robust_move_is_exact_and_bounded():
     pb = rest_to_rest(WB, 1.0, 1.0)
     p = plan_robust_time_optimal(pb, 1)
-    s = sample_robust(pb, p, 1, 1000.0)
+    s = plan_robust_time_optimal_zoh(pb, p, 1, 1000.0)
     assert s.samples == math.ceil(p.duration * 1000) and s.minimal
     assert np.max(np.abs(s.commands)) <= 1.0
     A, B = wb_augmented()

@@ -14,8 +14,8 @@ from flexmotion_ros.core import (
     rest_to_rest,
     simulate,
 )
-from flexmotion_ros.core.robust_time_optimal import plan_robust_time_optimal
-from flexmotion_ros.core.sensitivity import (
+from flexmotion_ros.core.shaping.numerical_shapers import impulse_vibration
+from flexmotion_ros.core.shaping.sensitivity import (
     command_curve,
     command_damping_curve,
     command_insensitivity,
@@ -27,9 +27,10 @@ from flexmotion_ros.core.sensitivity import (
     shaper_insensitivity,
     worst_in_band,
 )
-from flexmotion_ros.core.shaped_profile import shape
-from flexmotion_ros.core.shapers import Shaper, design, impulse_vibration
-from flexmotion_ros.core.simulation import modal_amplitudes
+from flexmotion_ros.core.shaping.shaped_profile import shape
+from flexmotion_ros.core.shaping.shapers import Shaper, design
+from flexmotion_ros.core.simulation.exact import modal_amplitudes
+from flexmotion_ros.core.time_optimal.robust import plan_robust_time_optimal
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
 

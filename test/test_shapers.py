@@ -14,17 +14,17 @@ from flexmotion_ros.core import (
     SolverError,
     simulate,
 )
-from flexmotion_ros.core.boundary import motion_to_rest, rest_to_rest
-from flexmotion_ros.core.robust_time_optimal import RobustModalResponse
-from flexmotion_ros.core.sensitivity import shaper_insensitivity
-from flexmotion_ros.core.shaped_profile import (
+from flexmotion_ros.core.model.boundary import motion_to_rest, rest_to_rest
+from flexmotion_ros.core.shaping.sensitivity import shaper_insensitivity
+from flexmotion_ros.core.shaping.shaped_profile import (
     plan_shaped,
     sample_command,
     shape,
     step_command,
 )
-from flexmotion_ros.core.shapers import SHAPERS, design, multi_mode_direct
-from flexmotion_ros.core.simulation import modal_amplitudes
+from flexmotion_ros.core.shaping.shapers import SHAPERS, design, multi_mode_direct
+from flexmotion_ros.core.simulation.exact import modal_amplitudes
+from flexmotion_ros.core.time_optimal.robust import RobustModalResponse
 
 ZERO_VIBRATION = ["zv", "zvd", "zvdd", "mzv", "sna", "um_zv", "um_zvd"]
 MODES = [(2.0, 0.0), (2.0, 0.05), (0.7, 0.2), (13.0, 0.02)]
@@ -207,7 +207,7 @@ def test_shaping_a_vibrating_start_is_refused():
     m = single_mode(2.0, 0.0)
     x0 = m.rest_state()
     x0[2] = 0.1
-    from flexmotion_ros.core.boundary import state_to_rest
+    from flexmotion_ros.core.model.boundary import state_to_rest
 
     with pytest.raises(FlexmotionError, match="initial_state"):
         plan_shaped(state_to_rest(m, 1.0, x0, 1.0), design("zv", 2.0, 0.0))
@@ -243,7 +243,7 @@ def test_shaped_commands_never_exceed_the_bound(ms, b0, u_max, move, stop, name)
 
 def test_shaped_step_and_ramp_references():
     """References (positions) shaped like commands: a step becomes a staircase, a ramp is delayed by sum A_i t_i."""
-    from flexmotion_ros.core.shaped_profile import shape_function
+    from flexmotion_ros.core.shaping.shaped_profile import shape_function
 
     s = design("zvd", 2.0, 0.05)
     step = shape_function(lambda t: np.where(t >= 0.0, 1.0, 0.0), s)

@@ -9,9 +9,8 @@ import pytest
 
 from flexmotion_ros.cli.main import main
 from flexmotion_ros.core import load_config, rest_to_rest, simulate_samples
-from flexmotion_ros.core.config import METHODS
-from flexmotion_ros.core.planning import load_methods, plan_move
-from flexmotion_ros.core.shapers import SHAPERS
+from flexmotion_ros.core.methods import METHODS, plan_move
+from flexmotion_ros.core.shaping.shapers import SHAPERS
 
 WB_FILE = str(Path(__file__).resolve().parent.parent / "config" / "wie_bernstein.yaml")
 WB_TEXT = Path(WB_FILE).read_text()
@@ -71,7 +70,6 @@ def test_plan_with_shaper_and_robust_methods(capsys):
 
 
 def test_every_method_is_registered_and_plans_exactly():
-    load_methods()
     assert set(SHAPERS) | {"robust_time_optimal", "time_optimal"} <= set(METHODS)
     cfg = load_config(WB_FILE)
     pb = rest_to_rest(cfg.model, cfg.u_max, 1.0)

@@ -17,8 +17,8 @@ from flexmotion_ros.core import (
     simulate,
     simulate_samples,
 )
-from flexmotion_ros.core.modal_response import ModalResponse
-from flexmotion_ros.core.simulation import step_matrices
+from flexmotion_ros.core.simulation.exact import step_matrices
+from flexmotion_ros.core.simulation.modal_response import ModalResponse
 
 MODEL = ModalModel(
     b0=0.8, c=-0.3, omega=(1.3, 4.7, 11.0), zeta=(0.0, 0.05, 0.3), b=(1.2, -0.4, 2.5)

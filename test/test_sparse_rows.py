@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flexmotion_ros.core.sparse_rows import NO_META, SparseRows
+from flexmotion_ros.core.sampled.sparse_rows import NO_META, SparseRows
 
 
 def test_rows_blocks_entries_metadata_and_offsets():

@@ -10,10 +10,10 @@ from flexmotion_ros.core import (
     final_state,
     plan_time_optimal,
     rest_to_rest,
-    time_optimal,
     two_mass,
 )
-from flexmotion_ros.core.switching import isolate_roots
+from flexmotion_ros.core.time_optimal import solver as time_optimal
+from flexmotion_ros.core.time_optimal.switching import isolate_roots
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
 

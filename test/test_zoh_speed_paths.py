@@ -23,10 +23,16 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from flexmotion_ros.core import chain, plan_time_optimal, plan_zoh, rest_to_rest, zoh
-from flexmotion_ros.core.modal_response import ModalResponse
-from flexmotion_ros.core.simulation import simulate_samples
-from flexmotion_ros.core.time_optimal import state_scale
+from flexmotion_ros.core import (
+    chain,
+    plan_time_optimal,
+    plan_time_optimal_zoh,
+    rest_to_rest,
+)
+from flexmotion_ros.core.sampled import zoh
+from flexmotion_ros.core.simulation.exact import simulate_samples
+from flexmotion_ros.core.simulation.modal_response import ModalResponse
+from flexmotion_ros.core.time_optimal.reachable_set import state_scale
 
 U_MAX = 10.0
 RATE = 1000.0
@@ -91,7 +97,7 @@ def test_benchmark_case_unchanged_and_proved(case):
     K_ref, blob = REFERENCE[case]
     u_ref = decode(blob)
     assert u_ref.size == K_ref
-    prof = plan_zoh(problem, RATE)
+    prof = plan_time_optimal_zoh(problem, RATE)
     assert prof.samples == K_ref
     assert prof.minimal and prof.lower_bound_samples == prof.samples
     assert np.max(np.abs(prof.commands)) <= U_MAX

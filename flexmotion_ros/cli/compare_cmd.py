@@ -17,10 +17,9 @@ import time
 
 import numpy as np
 
-from ..core.config import METHODS
 from ..core.errors import FlexmotionError, SolverError
-from ..core.planning import load_methods, plan_move
-from ..core.sensitivity import (
+from ..core.methods import METHODS, plan_move
+from ..core.shaping.sensitivity import (
     command_curve,
     command_insensitivity,
     residual_amplitudes,
@@ -61,7 +60,6 @@ def run(args: argparse.Namespace) -> int:
     model, um = config.model, config.u_max
     if not model.n_modes:
         raise FlexmotionError("model.omega", "compare needs a model with at least one vibration mode")
-    load_methods()
     methods = [m.strip() for m in args.methods.split(",")] if args.methods else list(METHODS)
     unknown = [m for m in methods if m not in METHODS]
     if unknown:

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.config import ConfigError, load_config, read_parameter_file
-from ..core.errors import GoalError
+from ..core.config import load_config, read_parameter_file
+from ..core.errors import ConfigError, GoalError
 
 #: The default parameter file: the Wie-Bernstein benchmark (source tree or installed share).
 _PKG = Path(__file__).resolve().parents[2]
@@ -249,7 +249,7 @@ class _Demo:
 
     # --------------------------------------------------------------- report
     def _report(self, t_req, cmds, sts, diag, planned_t, planned_p, K) -> int:
-        from ..core.simulation import modal_amplitudes
+        from ..core.simulation.exact import modal_amplitudes
         from ..plots.demo import plot_demo
 
         model = self.plant_cfg.model

@@ -14,13 +14,13 @@ import math
 import sys
 
 from ..core.config import read_parameter_file
-from ..core.design import optimize_design, write_design
-from ..core.design_problem import (
+from ..core.design.optimize import optimize_design, write_design
+from ..core.design.problem import (
     RobustnessRequirement,
     problem_from_parameters,
     rigid_bound,
 )
-from ..core.design_space import PARAMETER_RANGES, DesignParameter
+from ..core.design.space import PARAMETER_RANGES, DesignParameter
 from ..core.errors import FlexmotionError
 
 

@@ -1,6 +1,6 @@
 """``flexmotion``: entry point and sub-command registry.
 
-Each sub-command lives in its own module with ``register(subparsers)``, which
+Each sub-command lives in its own module (imported here by name) with ``register(subparsers)``, which
 adds its parser and sets ``func(args) -> int``.  Bad input raises
 :class:`~flexmotion_ros.core.errors.FlexmotionError` (or ``SolverError``);
 it is printed as one line on stderr with exit status 2, and nothing goes to
@@ -10,21 +10,14 @@ stdout.
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 
 from ..core.errors import FlexmotionError, SolverError
+from . import compare_cmd, demo_cmd, design_cmd, model_cmd, plan_cmd, shaper_cmd
 
 #: Modules that provide sub-commands, in help order.
-COMMAND_MODULES = [
-    "flexmotion_ros.cli.plan_cmd",
-    "flexmotion_ros.cli.model_cmd",
-    "flexmotion_ros.cli.design_cmd",
-    "flexmotion_ros.cli.shaper_cmd",
-    "flexmotion_ros.cli.compare_cmd",
-    "flexmotion_ros.cli.demo_cmd",
-]
+COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -36,8 +29,8 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="flexmotion", description="Time-optimal, vibration-free moves for flexible machines.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    for module in COMMAND_MODULES:
+        module.register(sub)
     return parser
 
 

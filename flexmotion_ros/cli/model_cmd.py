@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..core.builders import chain, crane, two_mass
 from ..core.config import PlannerConfig, dump_parameters
+from ..core.model.builders import chain, crane, two_mass
 
 
 def _floats(text: str) -> list[float]:

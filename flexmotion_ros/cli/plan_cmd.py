@@ -9,11 +9,11 @@ import math
 import numpy as np
 import yaml
 
-from ..core.boundary import motion_to_rest, rest_to_rest, state_to_rest
-from ..core.config import ConfigError, load_config
-from ..core.errors import GoalError
-from ..core.model import check_positive
-from ..core.planning import plan_move
+from ..core.config import load_config
+from ..core.errors import ConfigError, GoalError
+from ..core.methods.table import plan_move
+from ..core.model.boundary import motion_to_rest, rest_to_rest, state_to_rest
+from ..core.model.modal_model import check_positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:

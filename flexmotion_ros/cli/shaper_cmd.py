@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..core.sensitivity import shaper_insensitivity
-from ..core.shapers import SHAPERS, design
+from ..core.shaping.sensitivity import shaper_insensitivity
+from ..core.shaping.shapers import SHAPERS, design
 
 
 def _floats(text: str) -> list[float]:

@@ -29,11 +29,21 @@ from typing import Any
 
 import yaml
 
-from .errors import FlexmotionError
-from .model import ModalModel, check_positive
+from .errors import ConfigError
+from .model.modal_model import ModalModel, check_positive
+from .shaping.shapers import SHAPERS
 
-#: Planning methods known to the core (other modules register more).
-METHODS: dict[str, str] = {"time_optimal": "certified time-optimal bang-bang (zero-order hold at rate_hz)"}
+#: The planning methods, in the order of :data:`~flexmotion_ros.core.methods.METHODS` (which
+#: holds their planners and checks that the two lists agree): the default first, then every shaper.
+METHOD_NAMES: tuple[str, ...] = (
+    "time_optimal",
+    *SHAPERS,
+    "robust_time_optimal",
+    "time_optimal_friction",
+    "fixed_time",
+    "min_fuel",
+    "limited",
+)
 
 DEFAULTS: dict[str, Any] = {
     "model.b0": 1.0,
@@ -70,8 +80,6 @@ NOT_OPTIONS = frozenset(
 )
 
 
-class ConfigError(FlexmotionError):
-    """A configuration file or parameter set that cannot be used."""
 
 
 @dataclass(frozen=True)
@@ -86,7 +94,7 @@ class PlannerConfig:
     rate_hz : float
         Command rate (Hz).
     method : str
-        Profile type (a key of :data:`METHODS`).
+        Profile type (one of :data:`METHOD_NAMES`).
     position_min, position_max : float
         Allowed goal positions (m or rad); infinite means no limit.
     options : dict
@@ -107,11 +115,8 @@ class PlannerConfig:
         if rate > 1e6:
             raise ConfigError("rate_hz", f"must be in (0, 1e6] Hz, got {rate}")
         object.__setattr__(self, "rate_hz", rate)
-        from .planning import load_methods  # methods register themselves on import
-
-        load_methods()
-        if self.method not in METHODS:
-            raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {self.method!r}")
+        if self.method not in METHOD_NAMES:
+            raise ConfigError("method", f"must be one of {sorted(METHOD_NAMES)}, got {self.method!r}")
         lo, hi = float(self.position_min), float(self.position_max)
         if math.isnan(lo) or math.isnan(hi) or lo >= hi:
             raise ConfigError(

@@ -31,3 +31,13 @@ class SolverError(RuntimeError):
     A profile that failed its exact final-state check is never returned: the
     planner raises this instead.
     """
+
+
+class ConfigError(FlexmotionError):
+    """A configuration file or parameter set that cannot be used."""
+
+
+
+class UnreachableError(SolverError):
+    """The sampled system cannot reach the target at this rate (e.g. ``omega dt`` a multiple of ``pi``)."""
+

@@ -21,7 +21,6 @@ each intermediate set has mismatched lengths and is refused.
 from __future__ import annotations
 
 import array
-import importlib
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -40,10 +39,10 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.config import DEFAULTS, ConfigError, PlannerConfig, config_from_parameters
-from ..core.errors import FlexmotionError
-from ..core.model import ModalModel
-from ..core.planning import load_methods
+from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
+from ..core.errors import ConfigError, FlexmotionError
+from ..core.methods import METHODS
+from ..core.model.modal_model import ModalModel
 
 INF = math.inf
 
@@ -100,8 +99,6 @@ def _model_specs(read_only: bool) -> list[Spec]:
 
 
 def _method_description() -> str:
-    load_methods()
-    from ..core.config import METHODS
 
     return "profile type, one of: " + ", ".join(sorted(METHODS)) + ". A change applies to the next goal."
 
@@ -330,14 +327,6 @@ class PlantConfig:
         return 1.0 / self.rate_hz
 
 
-def _friction_module():
-    """``core.friction`` (written by the friction work), imported only when friction is asked for."""
-    try:
-        return importlib.import_module("flexmotion_ros.core.friction")
-    except ImportError:
-        return None
-
-
 def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     """Validate the plant's parameters; raise :class:`FlexmotionError` naming the bad one."""
     base = config_from_parameters({k: values[k] for k in ("model.b0", "model.c", "model.omega", "model.zeta", "model.b", "rate_hz") if k in values})
@@ -364,11 +353,6 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     coulomb = float(values.get("plant.coulomb_force", 0.0))
     if not (math.isfinite(coulomb) and coulomb >= 0.0):
         raise ConfigError("plant.coulomb_force", f"must be finite and >= 0 N, got {coulomb}")
-    if coulomb > 0.0 and _friction_module() is None:
-        raise ConfigError(
-            "plant.coulomb_force",
-            "needs flexmotion_ros.core.friction (simulate_coulomb), which this installation does not have yet; use 0.0",
-        )
     timeout = float(values.get("command_timeout", 0.1))
     if not (math.isfinite(timeout) and timeout >= 0.0):
         raise ConfigError("command_timeout", f"must be finite and >= 0 s, got {timeout}")
@@ -388,11 +372,3 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
         coulomb_force=coulomb,
         initial_position=p0,
     )
-
-
-def friction_step():
-    """``simulate_coulomb`` from ``core.friction`` (call only when friction is configured)."""
-    module = _friction_module()
-    if module is None:  # validated earlier; kept for a clear message if the module vanished
-        raise ConfigError("plant.coulomb_force", "flexmotion_ros.core.friction is not available")
-    return module.simulate_coulomb

@@ -68,10 +68,11 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.boundary import state_to_rest
 from ..core.config import PlannerConfig
 from ..core.errors import FlexmotionError, GoalError, SolverError
-from ..core.planning import PlanResult, plan_move
+from ..core.methods.table import plan_move
+from ..core.model.boundary import state_to_rest
+from ..core.results import PlanResult
 from . import messages
 from .parameters import (
     PLANNER_NODE_ONLY,
@@ -338,7 +339,7 @@ class PlannerNode(Node):
         if target is not None:
             target = config.check_goal(target)
         lead = self._lead_samples()
-        for attempt in range(SPLICE_ATTEMPTS):
+        for _attempt in range(SPLICE_ATTEMPTS):
             k_next, timeline = self.stream.snapshot()
             if not timeline:
                 if target is None:

@@ -49,13 +49,13 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from ..core.simulation import PiecewiseConstant, step_matrices
+from ..core.friction.contact import simulate_coulomb
+from ..core.simulation.exact import PiecewiseConstant, step_matrices
 from . import messages
 from .parameters import (
     PlantConfig,
     declare,
     declared_values,
-    friction_step,
     plant_config_from_parameters,
     plant_specs,
     validating_callback,
@@ -150,7 +150,7 @@ class PlantNode(Node):
             self._A, self._B = A, B
             self._steps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
             self._Phi, self._Gam = step_matrices(A, B, cfg.dt)
-            self._coulomb = friction_step() if cfg.coulomb_force > 0.0 else None
+            self._coulomb = simulate_coulomb if cfg.coulomb_force > 0.0 else None
             self._timeout_us = round(cfg.command_timeout / TIME_QUANTUM)
             self._stamp_key = "source_timestamp" if cfg.apply_at == "send" else "received_timestamp"
 

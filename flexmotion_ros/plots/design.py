@@ -8,9 +8,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..core.design import DesignResult
-from ..core.design_problem import rigid_bound
-from ..core.design_space import PARAMETER_RANGES
+from ..core.design.optimize import DesignResult
+from ..core.design.problem import rigid_bound
+from ..core.design.space import PARAMETER_RANGES
 
 
 def _label(result: DesignResult, name: str) -> str:

@@ -9,7 +9,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from flexmotion_ros.core.simulation import modal_amplitudes
+from flexmotion_ros.core.simulation.exact import modal_amplitudes
 from flexmotion_ros.nodes import messages
 
 from .conftest import FAST, goal_request, wait_for

@@ -12,7 +12,6 @@ from std_msgs.msg import Float64
 
 from flexmotion_ros.core.errors import FlexmotionError
 from flexmotion_ros.nodes import messages
-from flexmotion_ros.nodes.parameters import _friction_module
 from flexmotion_ros.nodes.planner_node import PlannerNode
 from flexmotion_ros.nodes.plant_node import PlantNode
 
@@ -135,13 +134,9 @@ def test_invalid_start_up_parameters_raise_with_the_name(ros):
         plant(**{"plant.omega_scale": [1.1]})
     with pytest.raises(FlexmotionError, match=r"plant\.extra_zeta\[0\]"):
         plant(**{"plant.extra_zeta": [-0.1, 0.0]})
-    if _friction_module() is None:  # until core.friction lands, friction is refused clearly
-        with pytest.raises(FlexmotionError, match=r"plant\.coulomb_force: needs flexmotion_ros\.core\.friction"):
-            plant(**{"plant.coulomb_force": 1.0})
-    else:
-        node = plant(**{"plant.coulomb_force": 1.0})
-        assert node.cfg.coulomb_force == 1.0
-        node.destroy_node()
+    node = plant(**{"plant.coulomb_force": 1.0})
+    assert node.cfg.coulomb_force == 1.0
+    node.destroy_node()
 
 
 def test_plant_refuses_invalid_live_changes(ros):

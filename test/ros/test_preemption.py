@@ -8,7 +8,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from flexmotion_ros.core.simulation import modal_amplitudes
+from flexmotion_ros.core.simulation.exact import modal_amplitudes
 
 from .conftest import goal_request, wait_for
 from .test_goals import assert_at_rest, finished_move

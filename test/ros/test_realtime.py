@@ -7,7 +7,7 @@ import time
 import numpy as np
 from std_msgs.msg import Float64
 
-from flexmotion_ros.core.simulation import (
+from flexmotion_ros.core.simulation.exact import (
     PiecewiseConstant,
     final_state,
     modal_amplitudes,

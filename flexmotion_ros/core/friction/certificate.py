@@ -1,0 +1,181 @@
+"""Certificate of a bang-bang move under Coulomb friction: the hybrid Pontryagin conditions.
+
+Along the exact friction trajectory of a move from
+:func:`~.friction_time_optimal.plan_time_optimal_friction` the switching
+function ``B^T lambda`` (with the costate jumps at velocity reversals) must
+vanish at every switch, change sign nowhere else (proved per costate piece by
+:func:`~.switching.isolate_roots`), have the sign of ``-u`` on every interval,
+and the Hamiltonian must be zero.  These are necessary conditions only: the
+friction system is not linear, so global time-optimality is not proved
+(:data:`CLAIM`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..simulation.exact import PiecewiseConstant
+from ..simulation.modal_response import ModalResponse
+from ..time_optimal.switching import isolate_roots, sample_grid
+from ..tolerances import HAMILTONIAN_TOL, SWITCH_RESIDUAL_TOL
+
+if TYPE_CHECKING:
+    from .extremal import Extremal
+
+
+
+@dataclass
+class FrictionCertificate:
+    """Evidence that a bang-bang move under friction is a Pontryagin extremal of the piecewise system.
+
+    Attributes
+    ----------
+    passed : bool
+        ``B^T lambda`` vanishes at every switch, changes sign nowhere else
+        (proved per costate piece, :func:`~.switching.isolate_roots`), has the
+        sign of ``-u`` on every interval, and ``H = 0`` along the move.
+    switch_residual : float
+        ``max_j |B^T lambda(t_j)|`` relative to ``max_t |B^T lambda(t)|``.
+    extra_zeros, unproved_cells : int
+    sign_consistent : bool
+    hamiltonian_max_abs : float
+    costate_final : ndarray
+        ``lambda(T)`` (``H = 1 + lambda^T x'``).
+    claim : str
+        What is and is not proved.
+    message : str
+    """
+
+    passed: bool
+    switch_residual: float
+    extra_zeros: int
+    unproved_cells: int
+    sign_consistent: bool
+    hamiltonian_max_abs: float
+    costate_final: np.ndarray
+    claim: str
+    message: str = "ok"
+
+    def to_dict(self) -> dict:
+        """JSON-friendly summary."""
+        return {
+            "passed": bool(self.passed),
+            "switch_residual": float(self.switch_residual),
+            "extra_zeros": int(self.extra_zeros),
+            "unproved_cells": int(self.unproved_cells),
+            "sign_consistent": bool(self.sign_consistent),
+            "hamiltonian_max_abs": float(self.hamiltonian_max_abs),
+            "costate_final": [float(v) for v in self.costate_final],
+            "claim": self.claim,
+            "message": self.message,
+        }
+
+
+CLAIM = (
+    "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
+    "velocity reversals): necessary conditions only; global time-optimality is not proved (friction makes the "
+    "reachable sets non-convex); lower_bound_s is a proved bound"
+)
+
+
+def same_switches(zeros: np.ndarray, t_sw: np.ndarray, T: float) -> bool:
+    return zeros.size == t_sw.size and bool(np.all(np.abs(zeros - t_sw) <= 1e-9 * T))
+
+
+def switching_zeros(ext: Extremal, y: np.ndarray):
+    """Sign changes of ``B^T lambda`` on ``(0, T)`` (proved per costate piece) and the sign of ``u`` at the start.
+
+    Returns ``(zeros, sign0)``, or ``(None, 0)`` if the contact sticks or a cell is unproved.
+    """
+    zeros, unproved, _, lam0 = _zeros_detail(ext, y)
+    if zeros is None or unproved:
+        return None, 0.0
+    return zeros, float(-np.sign(ext.sys.B @ lam0) or 1.0)
+
+
+def _zeros_detail(ext: Extremal, y: np.ndarray):
+    t_sw, T, lam = ext.unpack(y)
+    sysf = ext.sys
+    u = PiecewiseConstant.from_switches(t_sw, ext.levels, T)
+    run = sysf.run(ext.problem.x0, u, [T], lock_after=float(t_sw[-1]) if ext.L else 0.0)
+    Lams = ext.costates(run, lam)
+    if Lams is None:
+        return None, 0, 0.0, lam
+    system = ModalResponse(ext.problem.model, True)
+    segs = run.segments
+    # costate pieces: maximal runs of segments without a reversal
+    pieces, start = [], 0
+    for i in range(1, len(segs) + 1):
+        if i == len(segs) or segs[i][2] != segs[i - 1][2]:
+            pieces.append((start, i - 1))
+            start = i
+    unproved = 0
+    sig_max = 0.0
+    found = []
+    for a, b in pieces:
+        ta, tb = segs[a][0], segs[b][1]
+        nu = -np.linalg.solve(sysf.transition(segs[b][1] - segs[b][0]).T, Lams[b] @ lam)  # -lambda(tb^-)
+        length = tb - ta
+        iso = isolate_roots(system, nu, length, sample_grid(system, length, density=2.0))
+        unproved += iso.unproved
+        found += list(tb - iso.roots)
+        grid = np.linspace(0.0, length, 257)
+        sig_max = max(sig_max, float(np.max(np.abs(system.switching(nu, grid)))))
+    found = np.sort(np.array(found))
+    found = found[(found > 0.0) & (found < T)]
+    return found, unproved, sig_max, Lams[0] @ lam
+
+
+def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
+    """Check the hybrid Pontryagin conditions along the exact friction trajectory."""
+    t_sw, T, lam = ext.unpack(y)
+    sysf = ext.sys
+    u = PiecewiseConstant.from_switches(t_sw, ext.levels, T)
+    run = sysf.run(ext.problem.x0, u, [T], lock_after=float(t_sw[-1]) if ext.L else 0.0)
+    Lams = ext.costates(run, lam)
+    found, unproved, sig_max, _ = _zeros_detail(ext, y)
+    if Lams is None or found is None:
+        return FrictionCertificate(False, math.inf, 0, 0, False, math.inf, lam, CLAIM, "the contact sticks during the move")
+    segs = run.segments
+    extra = 0
+    sign_ok = True
+    tol = 1e-9 * T
+    matched = np.zeros(t_sw.size, bool)
+    for z in found:
+        k = int(np.argmin(np.abs(t_sw - z))) if t_sw.size else -1
+        if k >= 0 and not matched[k] and abs(t_sw[k] - z) <= tol:
+            matched[k] = True
+        else:
+            extra += 1
+    extra += int(np.count_nonzero(~matched))
+    # sign on every segment (between switches and reversals: B^T lambda jumps at a reversal),
+    # and the Hamiltonian at every segment start
+    starts = np.array([s[0] for s in segs])
+    for i, (t0i, t1i, _, level) in enumerate(segs):
+        if t1i <= t0i:
+            continue
+        h = 0.5 * (t1i - t0i)
+        sig = float(sysf.B @ np.linalg.solve(sysf.transition(h).T, Lams[i] @ lam))  # lambda at the midpoint
+        if np.sign(-sig) != np.sign(level):
+            sign_ok = False
+    H = [1.0 + float((Lams[i] @ lam) @ sysf.field(run.starts[i], segs[i][3], segs[i][2])) for i in range(len(segs))]
+    ham = float(np.max(np.abs(H)))
+    sig_sw = [float(sysf.B @ (Lams[int(np.argmin(np.abs(starts - tj)))] @ lam)) for tj in t_sw]
+    resid = float(np.max(np.abs(sig_sw)) / sig_max) if t_sw.size and sig_max > 0 else 0.0
+    reasons = []
+    if resid > SWITCH_RESIDUAL_TOL:
+        reasons.append(f"switching function not zero at a switch (residual {resid:.2e})")
+    if extra:
+        reasons.append(f"switching function has {extra} sign change(s) that are not switches")
+    if unproved:
+        reasons.append(f"{unproved} cell(s) not proved zero-free")
+    if not sign_ok:
+        reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
+    if not ham <= HAMILTONIAN_TOL:
+        reasons.append(f"Hamiltonian not zero (max |H| = {ham:.2e})")
+    return FrictionCertificate(not reasons, resid, extra, unproved, sign_ok, ham, lam, CLAIM, "; ".join(reasons) or "ok")
+

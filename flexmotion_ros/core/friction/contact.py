@@ -1,0 +1,484 @@
+"""Coulomb friction (seed eqs. 2.8-2.11): the contact model and its exact simulation.
+
+Model
+-----
+One friction contact with sliding velocity ``y = C x`` and Coulomb force ``F``::
+
+    x' = A x + B u - F g sgn(C x)              (sliding, y != 0)
+    x' = A x + B u + g lam,  C x' = 0          (stuck: y = 0 and |lam| <= F)
+
+``g`` is the state derivative per newton of friction force (``C g > 0``: the
+force opposes the sliding velocity).  While stuck the contact force ``lam``
+holds ``y`` at zero: ``lam = -a``, ``a(x, u) = C (A x + B u) / (C g)`` (the
+net applied force at the contact, N), so the stuck dynamics are linear too,
+``x' = P (A x + B u)`` with ``P = I - g C / (C g)``: the constraint force
+enters every state that ``g`` touches.  The contact breaks loose when
+``|a|`` exceeds ``F``.
+
+Assumption for a :class:`ModalModel` (:func:`rigid_contact`): friction acts
+on the rigid-body coordinate only, ``g = |b0| e_v``, ``y = v`` (friction on
+the guide of the whole machine, proportional to mass: the generalised
+friction force on every vibration mode is zero).  Then ``a = sgn(b0) u``:
+the rigid body sticks while ``|u| <= F`` and the modes keep moving under
+``u`` unchanged.  Friction at a physical point of the structure (the cart of
+a crane, one mass of a chain) is :func:`contact_at_coordinate`; there the
+stuck point changes the modal dynamics through ``P``.
+
+Exactness
+---------
+Between events the dynamics are affine with constant input, propagated with
+:func:`~flexmotion_ros.core.simulation.step_matrices` (matrix exponentials).
+Events (the sliding velocity reaching zero, a stuck contact breaking loose)
+are located on the exact solution: in closed form when ``C A = alpha C``
+(the rigid-body contact: ``y`` obeys a scalar linear ODE), otherwise
+bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
+test and refined by Brent's method on the matrix-exponential solution.  The
+simulator never steps over an event.
+
+The planners built on this simulator: :mod:`.friction_time_optimal` (the
+bang-bang extremal, :func:`~.friction_time_optimal.plan_time_optimal_friction`),
+its certificate :mod:`.friction_certificate` and the zero-order-hold version
+:mod:`.friction_zoh` (:func:`~.friction_zoh.plan_time_optimal_friction_zoh`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.optimize import brentq
+
+from ..errors import FlexmotionError
+from ..model.modal_model import ModalModel
+from ..simulation.exact import PiecewiseConstant, step_matrices
+from ..simulation.modal_response import ModalResponse
+
+STICK = 0  # mode of a stuck contact (sliding modes are +1, -1)
+
+
+# ----------------------------------------------------------------- the contact
+@dataclass(frozen=True)
+class Contact:
+    """One Coulomb friction contact.
+
+    Attributes
+    ----------
+    g : ndarray, shape ``(n,)``
+        ``x'`` per newton of friction force (e.g. ``|b0| e_v`` for the rigid body).
+    C : ndarray, shape ``(n,)``
+        Sliding velocity ``y = C x`` (m/s).
+    force : float
+        Coulomb force ``F >= 0`` (N, the input's unit).
+    """
+
+    g: np.ndarray
+    C: np.ndarray
+    force: float
+
+    def __post_init__(self) -> None:
+        g = np.asarray(self.g, float).ravel()
+        C = np.asarray(self.C, float).ravel()
+        F = float(self.force)
+        if not (math.isfinite(F) and F >= 0.0):
+            raise FlexmotionError("coulomb_force", f"must be finite and >= 0 N, got {self.force}")
+        if g.shape != C.shape or not float(C @ g) > 0.0:
+            raise FlexmotionError("friction contact", "needs C g > 0 (friction must oppose the sliding velocity)")
+        object.__setattr__(self, "g", g)
+        object.__setattr__(self, "C", C)
+        object.__setattr__(self, "force", F)
+
+
+def rigid_contact(model: ModalModel, coulomb_force: float) -> Contact:
+    """Friction ``F sgn(v)`` on the rigid-body coordinate of ``model`` (see module notes)."""
+    g = np.zeros(model.n_states)
+    g[1] = abs(model.b0)
+    C = np.zeros(model.n_states)
+    C[1] = 1.0
+    return Contact(g, C, coulomb_force)
+
+
+def contact_at_coordinate(built, index: int, coulomb_force: float) -> Contact:
+    """Friction at physical coordinate ``index`` of a :class:`~.builders.BuiltModel` (inside the structure).
+
+    With ``Phi = modal_to_physical`` and the physical mass matrix ``M`` the
+    generalised effect of a force on coordinate ``j`` is ``Phi^{-1} M^{-1} e_j``
+    (mass-orthogonal modes); the sliding velocity is row ``j`` of ``Phi`` on
+    the velocity states.  Needs the builder's masses (``two_mass``, ``crane``,
+    ``chain``).
+    """
+    p = built.parameters
+    if "masses" in p:
+        masses = np.asarray(p["masses"], float)
+    elif "m1" in p:
+        masses = np.array([p["m1"], p["m2"]], float)
+    elif "cart_mass" in p:
+        masses = np.array([p["cart_mass"], p["payload_mass"]], float)
+    else:
+        raise FlexmotionError("friction contact", f"no masses known for a {built.kind!r} model")
+    Phi = np.asarray(built.modal_to_physical, float)
+    if not 0 <= index < Phi.shape[0]:
+        raise FlexmotionError("friction contact", f"coordinate index must be in [0, {Phi.shape[0] - 1}], got {index}")
+    eff = np.linalg.solve(Phi, np.eye(Phi.shape[0])[index] / masses)  # modal accelerations per N
+    n = built.model.n_states
+    g = np.zeros(n)
+    C = np.zeros(n)
+    g[1::2] = eff
+    C[1::2] = Phi[index]
+    return Contact(g, C, coulomb_force)
+
+
+# ------------------------------------------------------------------ simulation
+@dataclass
+class FrictionRun:
+    """An exact friction simulation.
+
+    Attributes
+    ----------
+    states : ndarray
+        States at the requested times.
+    segments : list of tuple
+        ``(t0, t1, mode, level)``: ``mode`` +1/-1 sliding, 0 stuck; constant input ``level``.
+    events : list of tuple
+        ``(t, kind, x)`` with ``kind`` in ``"reversal"``, ``"stick"``, ``"slip"``.
+    """
+
+    states: np.ndarray
+    segments: list = field(default_factory=list)
+    events: list = field(default_factory=list)
+    starts: list = field(default_factory=list)  # state at the start of each segment
+
+
+class FrictionSystem:
+    """``x' = A x + B u - F g sgn(C x)`` with sticking; exact event-located simulation."""
+
+    def __init__(self, A: np.ndarray, B: np.ndarray, contact: Contact) -> None:
+        self.A = np.ascontiguousarray(A, float)
+        self.B = np.ascontiguousarray(B, float).ravel()
+        self.contact = contact
+        self.n = self.A.shape[0]
+        c = contact
+        self.Cg = float(c.C @ c.g)
+        self.F = c.force
+        self.P = np.eye(self.n) - np.outer(c.g, c.C) / self.Cg
+        self.PA = self.P @ self.A
+        self.PB = self.P @ self.B
+        CA = c.C @ self.A
+        self.alpha = float(CA @ c.C) / float(c.C @ c.C)
+        # y = C x obeys a scalar ODE when C A = alpha C: closed-form events
+        self.scalar = bool(np.max(np.abs(CA - self.alpha * c.C)) <= 1e-14 * (np.max(np.abs(CA)) + 1e-300)) or not np.any(CA)
+        nz = np.flatnonzero(c.C)
+        self.unit = int(nz[0]) if nz.size == 1 and c.C[nz[0]] == 1.0 else None
+        self._wmax = {}
+        self.fast: ClosedForm | None = None
+
+    @classmethod
+    def for_model(cls, model: ModalModel, coulomb_force: float, closed_form: bool = False) -> FrictionSystem:
+        """Rigid-body friction on ``model``; ``closed_form=True`` propagates with the modal
+        closed forms (the planners' fast path) instead of matrix exponentials."""
+        system = cls(model.A(), model.B(), rigid_contact(model, coulomb_force))
+        if closed_form:
+            system.fast = ClosedForm(model)
+        return system
+
+    def transition(self, h: float) -> np.ndarray:
+        """``e^{A h}`` (sliding modes)."""
+        if self.fast is not None:
+            return self.fast.steps(h)[0]
+        return step_matrices(self.A, self.B, h)[0]
+
+    # --------------------------------------------------------------- pieces
+    def applied(self, x: np.ndarray, level: float) -> float:
+        """Net applied force at the contact ``a = C (A x + B u) / (C g)`` (N)."""
+        return float(self.contact.C @ (self.A @ x + self.B * level)) / self.Cg
+
+    def mode_at_rest(self, x: np.ndarray, level: float) -> int:
+        """With ``y = 0``: stick if ``|a| <= F``, else slide in the direction of ``a``."""
+        a = self.applied(x, level)
+        return int(np.sign(a)) if abs(a) > self.F else STICK
+
+    def field(self, x: np.ndarray, level: float, mode: int) -> np.ndarray:
+        """``x'`` in ``mode``."""
+        if mode == STICK:
+            return self.PA @ x + self.PB * level
+        return self.A @ x + self.B * level - self.F * mode * self.contact.g
+
+    def _affine(self, mode: int, level: float) -> tuple[np.ndarray, np.ndarray]:
+        if mode == STICK:
+            return self.PA, self.PB * level
+        return self.A, self.B * level - self.F * mode * self.contact.g
+
+    def advance(self, x: np.ndarray, level: float, mode: int, h: float) -> np.ndarray:
+        """Exact state after ``h`` seconds in ``mode`` (matrix exponentials)."""
+        if h <= 0.0:
+            return x.copy()
+        if self.fast is not None:
+            Phi, Gam, Gg = self.fast.steps(h)
+            if mode == STICK:  # rigid body held: p and v = 0 stay, the modes move under u
+                out = Phi @ x + Gam * level
+                out[:2] = x[0], 0.0
+                return out
+            return Phi @ x + Gam * level - (self.F * mode) * Gg
+        if mode == STICK:
+            Phi, Gam = step_matrices(self.PA, self.PB, h)
+            out = Phi @ x + Gam * level
+        else:
+            Phi, Gam = step_matrices(self.A, self.B, h)
+            _, Gg = step_matrices(self.A, self.contact.g, h)
+            out = Phi @ x + Gam * level - (self.F * mode) * Gg
+        if mode == STICK:
+            self._zero_y(out)
+        return out
+
+    def _zero_y(self, x: np.ndarray) -> None:
+        if self.unit is not None:
+            x[self.unit] = 0.0
+
+    # ---------------------------------------------------------------- events
+    def next_event(self, x: np.ndarray, level: float, mode: int, h: float) -> float | None:
+        """Earliest event time in ``(0, h]`` for the current mode, or None."""
+        C = self.contact.C
+        if self.scalar:
+            if mode == STICK:
+                return None  # a = C B u / C g is constant while y = 0
+            y0 = float(C @ x)
+            beta = float(C @ self.B) * level - self.F * mode * self.Cg
+            if y0 * mode <= 0.0 or beta * mode >= 0.0:
+                return None  # already at zero (moving away) or not decelerating
+            al = self.alpha
+            if al == 0.0:
+                tau = -y0 / beta
+            else:
+                z = -al * y0 / (al * y0 + beta)
+                tau = math.log1p(z) / al if z > -1.0 else math.inf
+            return tau if 0.0 < tau <= h else None
+        M, m = self._affine(mode, level)
+        if mode == STICK:
+            w = C @ self.A / self.Cg
+            k0 = float(C @ self.B) * level / self.Cg
+            roots = [self._first_root(M, m, x, w, k0 - self.F, h), self._first_root(M, m, x, w, k0 + self.F, h)]
+        else:
+            roots = [self._first_root(M, m, x, C, 0.0, h, start_sign=mode)]
+        roots = [r for r in roots if r is not None]
+        return min(roots) if roots else None
+
+    def _omega_max(self, M: np.ndarray) -> float:
+        key = M.tobytes()
+        if key not in self._wmax:
+            self._wmax[key] = float(np.max(np.abs(np.linalg.eigvals(M).imag), initial=0.0))
+        return self._wmax[key]
+
+    def _first_root(self, M, m, x0, w, k, h, start_sign=None) -> float | None:
+        """First zero in ``(0, h]`` of ``r(t) = w.x(t) + k``, ``x' = M x + m`` (exact solution)."""
+        wmax = self._omega_max(M)
+        cells = max(4, math.ceil(h * wmax * 16.0 / (2.0 * math.pi))) if wmax > 0.0 else 4
+        cells = min(cells, 100000)
+        d = h / cells
+        Phi, Gam = _affine_step(M, m, d)
+        xs = np.empty((cells + 1, x0.size))
+        xs[0] = x0
+        for i in range(cells):
+            xs[i + 1] = Phi @ xs[i] + Gam
+        r = xs @ w + k
+        dr = (xs @ M.T + m) @ w
+        s0 = start_sign if start_sign is not None else (np.sign(r[0]) or np.sign(dr[0]))
+        if r[0] * s0 <= 0.0:
+            # starting on the surface (an event just happened) with a rounding residue of the
+            # wrong sign: remove the residue, so the motion away from the surface is no root
+            k = k - r[0]
+            r = r - r[0]
+            r[0] = s0 * 1e-300
+        scale = float(np.max(np.abs(r))) + 1e-300
+        for i in range(cells):
+            a, b = r[i], r[i + 1]
+            if a * b <= 0.0:
+                lo_t, hi_t = 0.0, d
+            else:
+                # cubic Hermite dip: a double zero hidden between two samples
+                ss = np.linspace(0.0, 1.0, 9)[1:-1]
+                h00, h10 = 2 * ss**3 - 3 * ss**2 + 1, ss**3 - 2 * ss**2 + ss
+                h01, h11 = -2 * ss**3 + 3 * ss**2, ss**3 - ss**2
+                cub = h00 * a + h10 * d * dr[i] + h01 * b + h11 * d * dr[i + 1]
+                j = int(np.argmin(cub * np.sign(a)))
+                if cub[j] * np.sign(a) > 0.05 * scale:
+                    continue
+                tm = ss[j] * d
+                xm = _affine_apply(M, m, xs[i], tm)
+                if (xm @ w + k) * a > 0.0:
+                    continue
+                lo_t, hi_t = 0.0, tm
+            xi = xs[i]
+
+            def f(t, xi=xi):
+                return float(_affine_apply(M, m, xi, t) @ w + k)
+
+            fb = f(hi_t)
+            if lo_t == 0.0 and i == 0:
+                # leaving the surface at t = 0: step back from hi_t until f has the start sign
+                t1, f1 = hi_t, fb
+                while f1 * s0 <= 0.0 and t1 > 1e-12 * d:
+                    hi_t, fb = t1, f1
+                    t1 *= 0.5
+                    f1 = f(t1)
+                if f1 * s0 <= 0.0:
+                    continue  # no excursion away from the surface: nothing to find here
+                lo_t, fa = t1, f1
+            else:
+                fa = f(lo_t) if lo_t > 0.0 else a
+            if fb == 0.0:
+                return i * d + hi_t
+            if fa * fb > 0.0:
+                continue
+            t = lo_t if fa == 0.0 else brentq(f, lo_t, hi_t, xtol=4e-16 * max(h, 1e-300), rtol=8.9e-16)
+            tau = i * d + t
+            if tau > 0.0:
+                return tau
+        return None
+
+    # ------------------------------------------------------------- simulate
+    def run(self, x0, u: PiecewiseConstant, times=None, lock_after: float = math.inf) -> FrictionRun:
+        """Exact states at ``times`` (default ``u.breaks``); input zero after ``u.duration``.
+
+        ``lock_after``: no events after this time (the mode is frozen), for
+        the planner's smooth shooting map only.
+        """
+        times = u.breaks if times is None else np.atleast_1d(np.asarray(times, float))
+        order = np.argsort(times, kind="stable")
+        out = np.empty((times.size, self.n))
+        x = np.array(x0, dtype=float)
+        levels, breaks = u.levels, u.breaks
+        k = 0
+        level = float(levels[0]) if levels.size else 0.0
+        y = float(self.contact.C @ x)
+        mode = int(np.sign(y)) if y != 0.0 else self.mode_at_rest(x, level)
+        t = 0.0
+        run = FrictionRun(out)
+        ti = 0
+        while ti < times.size:
+            target = float(times[order[ti]])
+            t_int = float(breaks[k + 1]) if k < levels.size else math.inf
+            seg_end = min(t_int, target)
+            if seg_end > t:
+                if mode != STICK and t < lock_after:
+                    y = float(self.contact.C @ x)
+                    if y * mode <= 0.0:  # at (or, by rounding, just past) zero velocity
+                        new = self.mode_at_rest(x, level)
+                        if new != mode:
+                            run.events.append((t, "stick" if new == STICK else "reversal", x.copy()))
+                        self._zero_y(x)
+                        mode = new
+                h = seg_end - t
+                tau = self.next_event(x, level, mode, h) if t < lock_after else None
+                step = h if tau is None else tau
+                run.starts.append(x.copy())
+                x = self.advance(x, level, mode, step)
+                run.segments.append((t, t + step, mode, level))
+                t = t + step if tau is not None and tau < h else seg_end
+                if tau is not None:
+                    if mode == STICK:
+                        mode = int(np.sign(self.applied(x, level)))
+                        run.events.append((t, "slip", x.copy()))
+                    else:
+                        if self.unit is not None:
+                            x[self.unit] = 0.0
+                        new = self.mode_at_rest(x, level)
+                        run.events.append((t, "stick" if new == STICK else "reversal", x.copy()))
+                        mode = new
+                    continue
+            if t >= target:
+                out[order[ti]] = x
+                ti += 1
+                continue
+            if t >= t_int:  # next input level
+                k += 1
+                level = float(levels[k]) if k < levels.size else 0.0
+                if mode == STICK:
+                    new = self.mode_at_rest(x, level)
+                    if mode == STICK and new != STICK:
+                        run.events.append((t, "slip", x.copy()))
+                    mode = new
+        return run
+
+
+class ClosedForm:
+    """``e^{A h}``, ``int_0^h e^{A s} B ds`` and the friction term in closed form (modal blocks)."""
+
+    def __init__(self, model: ModalModel) -> None:
+        self.model = model
+        self.resp = ModalResponse(model, True)
+        self.n = model.n_states
+        self._cache: dict[float, tuple] = {}
+
+    def steps(self, h: float):
+        hit = self._cache.get(h)
+        if hit is not None:
+            return hit
+        r = self.resp
+        n = self.n
+        Phi = np.zeros((n, n))
+        ch = r.c * h
+        Phi[0, 0] = 1.0
+        Phi[0, 1] = h * (math.expm1(ch) / ch if ch != 0.0 else 1.0)
+        Phi[1, 1] = math.exp(ch)
+        if r.w.size:
+            E, C, S = (a[0] for a in r._mode_trig(np.array([h])))
+            s_wd = r.sig / r.wd
+            i = 2 + 2 * np.arange(r.w.size)
+            Phi[i, i] = E * (C + s_wd * S)
+            Phi[i, i + 1] = E * S / r.wd
+            Phi[i + 1, i] = -E * r.w**2 / r.wd * S
+            Phi[i + 1, i + 1] = E * (C - s_wd * S)
+        Gam = r.input_integral(np.array([h]))[0]
+        Gg = np.zeros(n)
+        Gg[:2] = Gam[:2] * (abs(r.b0) / r.b0)  # friction acts on the rigid body only
+        if len(self._cache) > 4096:
+            self._cache.clear()
+        out = (Phi, Gam, Gg)
+        self._cache[h] = out
+        return out
+
+
+def _affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """``x(h) = Phi x + Gam`` for ``x' = M x + m`` (``m`` a constant vector)."""
+    Phi, Gam = step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
+    return Phi, Gam
+
+
+def _affine_apply(M: np.ndarray, m: np.ndarray, x: np.ndarray, h: float) -> np.ndarray:
+    """Exact ``x(h)`` for one odd step length (uncached: keeps the shared cache for sample periods)."""
+    n = M.shape[0]
+    Z = np.zeros((n + 1, n + 1))
+    Z[:n, :n] = M
+    Z[:n, n] = m
+    E = expm(Z * h)
+    return E[:n, :n] @ x + E[:n, n]
+
+
+def simulate_coulomb(model: ModalModel, x0, u: PiecewiseConstant, coulomb_force: float, times=None) -> np.ndarray:
+    """Exact states of ``model`` with Coulomb friction ``coulomb_force`` (N) on the rigid body.
+
+    Parameters
+    ----------
+    model : ModalModel
+    x0 : array_like
+        Full initial state ``[p, v, q1, q1', ...]``.
+    u : PiecewiseConstant
+        Input (zero after ``u.duration``).
+    coulomb_force : float
+        Friction force ``F >= 0`` (N): ``v' = c v + b0 u - |b0| F sgn(v)``;
+        stuck while ``v = 0`` and ``|u| <= F`` (the modes keep moving).
+    times : array_like, optional
+        Report times (s); default ``u.breaks``.
+
+    Returns
+    -------
+    ndarray, shape ``(len(times), n_states)``
+    """
+    system = FrictionSystem(model.A(), model.B(), rigid_contact(model, coulomb_force))
+    return system.run(x0, u, times).states
+
+
+def simulate_contact(A, B, contact: Contact, x0, u: PiecewiseConstant, times=None) -> FrictionRun:
+    """Exact simulation of any linear system with one friction contact (states and events)."""
+    return FrictionSystem(A, B, contact).run(x0, u, times)

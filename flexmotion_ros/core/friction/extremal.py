@@ -1,0 +1,150 @@
+"""The bang-bang extremal of a move under Coulomb friction: unknowns, residual, Newton.
+
+Shared by the planner (:mod:`.friction_time_optimal`) and its certificate
+(:mod:`.friction_certificate`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model.boundary import MoveProblem
+from ..simulation.exact import PiecewiseConstant
+from .contact import STICK, FrictionRun, FrictionSystem
+
+#: Newton on the extremal has converged when the scaled residual is below this.
+NEWTON_TOL = 1e-12
+
+
+class Extremal:
+    """Shooting map of the hybrid Pontryagin conditions for one problem and friction force."""
+
+    def __init__(self, problem: MoveProblem, levels: np.ndarray, F: float, scale: np.ndarray) -> None:
+        m = problem.model
+        self.problem = problem
+        self.sys = FrictionSystem.for_model(m, F, closed_form=True)
+        self.check = FrictionSystem.for_model(m, F)  # matrix exponentials: the independent check
+        self.x0 = problem.x0
+        self.xf = m.rest_state(problem.target if problem.target is not None else 0.0)
+        self.I = np.arange(m.n_states) if problem.include_position else np.arange(1, m.n_states)
+        self.levels = levels
+        self.L = levels.size - 1
+        self.s = scale
+        self.sig_scale = 1.0
+
+    def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+        lam = np.zeros(self.sys.n)
+        lam[self.I] = y[self.L + 1 :]
+        return y[: self.L], float(y[self.L]), lam
+
+    def valid(self, y: np.ndarray) -> bool:
+        t, T = y[: self.L], y[self.L]
+        return bool(T > 0.0 and (self.L == 0 or (t[0] > 0.0 and t[-1] < T and np.all(np.diff(t) > 0.0))))
+
+    def costates(self, run: FrictionRun, lamT: np.ndarray):
+        """``Lambda(t)`` with ``lambda(t) = Lambda(t) lambda(T)`` at every segment start (backward sweep).
+
+        ``Lambda(t)^T`` is also the sensitivity ``dx(T)/dx(t)`` of the hybrid flow: ``e^{A h}`` on
+        each segment and the saltation matrix at each reversal (None if the contact sticks).
+        """
+        sysf = self.sys
+        n = sysf.n
+        Lam = np.eye(n)
+        out = [None] * len(run.segments)
+        for i in range(len(run.segments) - 1, -1, -1):
+            t0, t1, mode, level = run.segments[i]
+            if mode == STICK:
+                return None
+            Lam = sysf.transition(t1 - t0).T @ Lam
+            out[i] = Lam
+            if i > 0 and run.segments[i - 1][2] != mode:  # a reversal at t0: saltation matrix
+                xc = run.starts[i]
+                fm = sysf.field(xc, run.segments[i - 1][3], run.segments[i - 1][2])
+                fp = sysf.field(xc, level, mode)
+                Sal = np.eye(n) + np.outer(fp - fm, sysf.contact.C) / float(sysf.contact.C @ fm)
+                Lam = Sal.T @ Lam
+        return out
+
+    def residual(self, y: np.ndarray, want_lam_jac: bool = False):
+        t_sw, T, lam = self.unpack(y)
+        u = PiecewiseConstant.from_switches(t_sw, self.levels, T)
+        run = self.sys.run(self.x0, u, [T], lock_after=float(t_sw[-1]) if self.L else 0.0)
+        xT = run.states[0]
+        r1 = (xT - self.xf)[self.I] / self.s[self.I]
+        Lams = self.costates(run, lam)
+        if Lams is None:
+            return None
+        starts = np.array([seg[0] for seg in run.segments])
+        rows = []
+        for tj in t_sw:
+            i = int(np.argmin(np.abs(starts - tj)))
+            rows.append(self.sys.B @ Lams[i])
+        rows = np.array(rows).reshape(self.L, -1)
+        sigma = rows @ lam / self.sig_scale
+        fT = self.sys.field(xT, float(self.levels[-1]), run.segments[-1][2])
+        H = 1.0 + float(lam @ fT)
+        r = np.concatenate([r1, sigma, [H]])
+        if not want_lam_jac:
+            return r
+        # Jacobian: in lambda(T) exactly; in (t_j, T) in closed form along the exact trajectory
+        # (the costate does not depend on x between reversals; through reversal times it does:
+        # those columns of the switching rows are differenced by the caller)
+        nI, L, A, B = self.I.size, self.L, self.sys.A, self.sys.B
+        J = np.zeros((r.size, L + 1 + nI))
+        dx = np.empty((self.sys.n, L + 1))
+        for j in range(L):
+            i = int(np.argmin(np.abs(starts - t_sw[j])))
+            dx[:, j] = Lams[i].T @ B * (self.levels[j] - self.levels[j + 1])
+            lam_j = Lams[i] @ lam
+            J[nI + j, j] = -float((A @ B) @ lam_j) / self.sig_scale
+            J[nI + j, L] = float((Lams[i].T @ B) @ (A.T @ lam)) / self.sig_scale
+        dx[:, L] = fT
+        J[:nI, : L + 1] = dx[self.I] / self.s[self.I, None]
+        J[-1, : L + 1] = (lam @ A) @ dx
+        J[nI : nI + L, L + 1 :] = rows[:, self.I] / self.sig_scale
+        J[-1, L + 1 :] = fT[self.I]
+        reversals = any(kind == "reversal" for _, kind, _ in run.events)
+        return r, J, reversals
+
+    def newton(self, y: np.ndarray, max_iter: int = 30) -> tuple[bool, np.ndarray, float]:
+        """Damped Newton on the extremal conditions from ``y``; returns ``(converged, y, residual)``."""
+        out = self.residual(y, True)
+        if out is None:
+            return False, y, math.inf
+        r, J, reversals = out
+        rn = float(np.max(np.abs(r)))
+        nz, nI, L = self.L + 1, self.I.size, self.L
+        for _ in range(max_iter):
+            if rn <= NEWTON_TOL:
+                return True, y, rn
+            if reversals and L:
+                knots = np.concatenate([[0.0], y[:nz]])
+                hstep = min(1e-7 * y[self.L], 0.25 * float(np.min(np.diff(knots))))
+                for j in range(nz):
+                    yp, ym = y.copy(), y.copy()
+                    yp[j] += hstep
+                    ym[j] -= hstep
+                    if not (self.valid(yp) and self.valid(ym)):
+                        return False, y, rn
+                    rp, rm = self.residual(yp), self.residual(ym)
+                    if rp is None or rm is None:
+                        return False, y, rn
+                    J[nI : nI + L, j] = (rp - rm)[nI : nI + L] / (2.0 * hstep)
+            step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+            tt = 1.0
+            for _ in range(20):
+                yc = y + tt * step
+                if self.valid(yc):
+                    oc = self.residual(yc, True)
+                    if oc is not None and float(np.max(np.abs(oc[0]))) < rn:
+                        break
+                tt *= 0.5
+            else:
+                return rn <= 1e3 * NEWTON_TOL, y, rn
+            y = yc
+            r, J, reversals = oc
+            rn = float(np.max(np.abs(r)))
+        return rn <= NEWTON_TOL, y, rn
+

@@ -1,0 +1,183 @@
+"""The sampled minimum-fuel linear program (zero-order hold at ``dt``), and the sampled-move helpers.
+
+Fuel is ``J = dt sum_k |u_k|`` (N s).  With ``g_m = e^{A m dt} Gamma(dt)``
+(``m`` samples to go)
+
+``min dt sum_k |u_k|  s.t.  sum_m g_m u_m = w_K := -e^{A K dt} x0, |u_m| <= u_max``
+
+is a linear program: its optimum is exact for the sampled problem.  Only
+samples near the crossings of ``|nu^T g_m| = dt`` are free variables (the
+others are fixed at ``0`` or ``+-u_max`` from a guess of ``nu``); the window
+solution is accepted only if the duality gap against the *full* problem's
+dual ``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+`` closes, else the
+windows grow.  The continuous-time problem is in :mod:`.min_fuel`.
+
+The helpers (state scale, exact arrival correction, the verified
+:class:`SampledProfile`) serve the limited planner too (:mod:`.limit_lp`,
+:mod:`.limits`); the sample vectors are :func:`.zoh.sample_vectors`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+
+from ..errors import GoalError, SolverError
+from ..model.boundary import MoveProblem
+from ..model.modal_model import check_positive
+from ..results import BangBangProfile, SampledProfile
+from ..sampled.check import verified_samples
+from ..sampled.lp_tools import correct_arrival, lp_state_scale, sample_vectors
+from ..simulation.modal_response import ModalResponse
+from ..time_optimal.solver import plan_time_optimal
+from ..tolerances import HIGHS_OPTIONS, LP_GAP_RTOL, MAX_SAMPLES, T_STAR_RTOL
+
+
+def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
+    """``dt sum |u_k|`` (N s)."""
+    return float(dt * np.sum(np.abs(commands)))
+
+
+
+def check_move_time(move_time: float, T_star: float) -> float:
+    """``move_time`` (s) checked against ``T*``; a value within ``T_STAR_RTOL`` below it is ``T*``."""
+    T = float(move_time)
+    if not math.isfinite(T) or T < T_star * (1.0 - T_STAR_RTOL):
+        raise GoalError("move_time", f"must be a finite time >= the time-optimal {T_star:.9g} s, got {move_time}")
+    return max(T, T_star)
+
+
+# ---------------------------------------------------------- sampled (the LP)
+@dataclass
+class _LPResult:
+    u: np.ndarray  # samples to go
+    fuel: float
+    bound: float  # full-problem dual bound d_K(nu)
+    nu: np.ndarray
+    free: int
+
+
+def _dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray, dt: float, um: float) -> float:
+    """``d_K(nu) = nu^T w - u_max sum_m (|nu^T g_m| - dt)_+``: a lower bound on the fuel (any nu)."""
+    return float(nu @ w - um * np.sum(np.maximum(np.abs(G @ nu) - dt, 0.0)))
+
+
+def _levels_from(G: np.ndarray, nu: np.ndarray, dt: float) -> np.ndarray:
+    s = (G @ nu) / dt
+    return np.where(s > 1.0, 1.0, np.where(s < -1.0, -1.0, 0.0))
+
+
+def _window(levels: np.ndarray, width: int) -> np.ndarray:
+    K = levels.size
+    free = np.zeros(K, dtype=bool)
+    for c in np.flatnonzero(levels[1:] != levels[:-1]):
+        free[max(0, c - width + 1) : min(K, c + width + 1)] = True
+    free[:width] = True
+    free[K - width :] = True
+    return free
+
+
+def _solve_fuel_lp(G, w, dt, um, scale, levels, free) -> _LPResult | None:
+    """``min fuel`` with samples outside ``free`` fixed at ``levels * u_max``; None if infeasible."""
+    F = np.flatnonzero(free)
+    nF = F.size
+    fixed = ~free
+    Gs = G / scale
+    rhs = w / scale - um * (Gs[fixed].T @ levels[fixed])
+    # u_f = u_max (p - q), 0 <= p, q <= 1
+    A_eq = um * np.hstack([Gs[F].T, -Gs[F].T])
+    res = linprog(np.ones(2 * nF), A_eq=A_eq, b_eq=rhs, bounds=(0.0, 1.0), method="highs", options=HIGHS_OPTIONS)
+    if res.status != 0:
+        return None
+    u = um * levels.astype(float)
+    u[F] = um * (res.x[:nF] - res.x[nF:])
+    nu = dt * um * np.asarray(res.eqlin.marginals, dtype=float) / scale  # d fuel / d w
+    return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
+
+
+def min_fuel_lp(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float, nu_guess: np.ndarray | None = None) -> _LPResult | None:
+    """Exact minimum-fuel ZOH sequence with ``K`` samples (samples-to-go order), None if infeasible.
+
+    With ``nu_guess`` only windows around its level changes are free; the
+    window solution is accepted when its full-problem duality gap closes.
+    """
+    G = sample_vectors(system, K, dt)
+    w = -system.expm_x(K * dt, x0)
+    scale = lp_state_scale(system, x0, um, K * dt)
+    result = None
+    if nu_guess is not None:
+        levels = _levels_from(G, nu_guess, dt)
+        width = 4
+        while 2 * width < K:
+            free = _window(levels, width)
+            sol = _solve_fuel_lp(G, w, dt, um, scale, levels, free)
+            if sol is not None and sol.fuel - sol.bound <= LP_GAP_RTOL * max(sol.fuel, um * dt):
+                result = sol
+                break
+            if sol is not None:  # the window's dual is a better guess of nu
+                levels = _levels_from(G, sol.nu, dt)
+            width *= 4
+    if result is None:
+        result = _solve_fuel_lp(G, w, dt, um, scale, np.zeros(K), np.ones(K, dtype=bool))
+        if result is None:
+            return None
+    # exact arrival: move samples strictly inside the bound (fractional ones first: fuel unchanged to rounding)
+    u = result.u
+    inner = np.abs(u) < um * (1.0 - 1e-9)
+    frac = inner & (np.abs(u) > um * 1e-9)
+    u = correct_arrival(G / scale, w / scale, u, frac if frac.sum() >= G.shape[1] else inner)
+    u = np.clip(u, -um, um)
+    result.u = u
+    result.fuel = fuel_of_samples(u, dt)
+    return result
+
+
+def plan_min_fuel_zoh(
+    problem: MoveProblem,
+    rate_hz: float,
+    move_time: float,
+    time_optimal: BangBangProfile | None = None,
+    nu_guess: np.ndarray | None = None,
+    continuous=None,
+) -> SampledProfile:
+    """Minimum-fuel zero-order-hold sequence at ``rate_hz`` arriving at rest after ``ceil(move_time * rate_hz)`` samples.
+
+    If fewer samples than the sampled time-optimum would be needed (a
+    ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
+
+    Returns
+    -------
+    SampledProfile
+        ``method = "min_fuel"``; ``extra`` holds ``fuel`` (N s), ``fuel_lower_bound``
+        (weak-duality bound: the gap proves optimality) and ``lp_free_samples``.
+    """
+    t0 = time.perf_counter()
+    rate = check_positive("rate_hz", rate_hz, "Hz")
+    dt = 1.0 / rate
+    if time_optimal is None:
+        time_optimal = plan_time_optimal(problem)
+    T = check_move_time(move_time, time_optimal.duration)
+    system = ModalResponse(problem.model, problem.include_position)
+    x0 = problem.shifted_initial()
+    um = problem.u_max
+    if not np.any(x0):
+        return verified_samples(problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0)
+    K = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
+    if K > MAX_SAMPLES:
+        raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate")
+    K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
+    sol = None
+    K_stop = max(K, K_lo) + 400
+    while sol is None and K <= K_stop:
+        sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
+        if sol is None:
+            K += 1  # within a sample or so of T*: the ZOH needs a few more samples
+    if sol is None:
+        raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
+    cmds = sol.u[::-1].copy()
+    extra = {"fuel": sol.fuel, "fuel_lower_bound": sol.bound, "lp_free_samples": sol.free, "costate": sol.nu.tolist()}
+    return verified_samples(problem, cmds, dt, "min_fuel", False, K_lo, continuous, extra, t0)

@@ -1,0 +1,81 @@
+"""The method table and its one entry point: ``plan_move(config, problem, rate_hz)``.
+
+A *method* turns a :class:`~flexmotion_ros.core.model.boundary.MoveProblem`
+into a continuous profile (anything with ``duration``, ``input()`` and
+``to_dict()``) and, given a rate, the exact zero-order-hold command sequence a
+node streams.  Every method is a module of this package, imported here by
+name, so the table is visible to any static tool; the nodes and the command
+line only ever call :func:`plan_move`, so a new method appears in both.
+The names are also :data:`~flexmotion_ros.core.config.METHOD_NAMES` (the
+configuration validates ``method`` against them without importing the
+planners); this module checks that both lists agree.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import METHOD_NAMES, PlannerConfig
+from ..errors import ConfigError, SolverError
+from ..model.boundary import MoveProblem
+from ..results import PlanResult
+from . import fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
+
+Planner = Callable[[PlannerConfig, MoveProblem, "float | None"], PlanResult]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Method:
+    """One row of the method table.
+
+    Attributes
+    ----------
+    name : str
+        The ``method`` parameter's value.
+    description : str
+        One line for parameter descriptors and ``--help``.
+    planner : callable
+        ``planner(config, problem, rate_hz) -> PlanResult``.
+    """
+
+    name: str
+    description: str
+    planner: Planner
+
+
+def _rows() -> dict[str, Method]:
+    rows = [Method(name=time_optimal.METHOD_NAME, description=time_optimal.DESCRIPTION, planner=time_optimal.plan)]
+    rows += [Method(name=n, description=d, planner=p) for n, (d, p) in shaped.SHAPER_METHODS.items()]
+    for module in (robust, friction, fixed_time, min_fuel, limited):
+        rows.append(Method(name=module.METHOD_NAME, description=module.DESCRIPTION, planner=module.plan))
+    return {row.name: row for row in rows}
+
+
+#: Every planning method, by name (the default, ``time_optimal``, first).
+METHODS: dict[str, Method] = _rows()
+if tuple(METHODS) != METHOD_NAMES:  # pragma: no cover - a programming error, caught by any import
+    raise ImportError(f"method table {tuple(METHODS)} and config.METHOD_NAMES {METHOD_NAMES} disagree")
+
+
+def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> PlanResult:
+    """Plan ``problem`` with ``config.method``; with ``rate_hz``, also the exact sampled sequence.
+
+    Raises
+    ------
+    InputError
+        Bad input (named parameter and allowed range).
+    SolverError
+        No profile passed its own checks (final state, bound).
+    """
+    method = METHODS.get(config.method)
+    if method is None:
+        raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {config.method!r}")
+    result = method.planner(config, problem, rate_hz)
+    if result.sampled is not None and result.sampled.commands.size:
+        peak = float(np.max(np.abs(result.sampled.commands)))
+        if peak > problem.u_max:  # the bound is never exceeded, whatever the method: a planner fault
+            raise SolverError(f"method {config.method} produced |u| = {peak} > u_max = {problem.u_max}; nothing is returned")
+    return result

@@ -1,0 +1,89 @@
+"""Zero-order-hold moves that arrive at a requested sample: the least-peak LP at exactly that many samples."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import SolverError
+from ..model.boundary import MoveProblem
+from ..model.modal_model import check_positive
+from ..results import BangBangProfile, SampledProfile
+from ..simulation.modal_response import ModalResponse
+from ..time_optimal.fixed_time import plan_fixed_time
+from .lp_tools import sample_vectors
+from .zoh import (
+    correct_exactly,
+    dual_bound,
+    finish_sampled,
+    plan_time_optimal_zoh,
+    solve_peak_lp,
+    window_mask,
+)
+
+
+def plan_fixed_time_zoh(
+    problem: MoveProblem, arrival_time: float, rate_hz: float, continuous: BangBangProfile | None = None
+) -> SampledProfile:
+    """Least-peak zero-order-hold sequence arriving at rest at sample ``round(arrival_time * rate_hz)``.
+
+    If that many samples cannot reach the target within ``u_max`` (the
+    request rounds below the sampled optimum), the fewest feasible samples
+    are used instead (``extra["requested_samples"]`` tells).  Reuses the
+    windowed least-peak linear program, its dual bound and the exact
+    correction of :mod:`.zoh`; checked by matrix-exponential simulation.
+
+    Raises
+    ------
+    FlexmotionError
+        Bad ``arrival_time`` or ``rate_hz``.
+    SolverError
+        No sequence passes the exact final-state check.
+    """
+    t0 = time.perf_counter()
+    rate = check_positive("rate_hz", rate_hz, "Hz")
+    dt = 1.0 / rate
+    if continuous is None:
+        continuous = plan_fixed_time(problem, arrival_time)
+    T_req = continuous.duration
+    K_req = round(T_req * rate)
+    um = problem.u_max
+    fewest = plan_time_optimal_zoh(problem, rate)
+    K = max(K_req, fewest.samples)
+    if K == fewest.samples:
+        out = fewest
+        out.extra.update({"requested_samples": K_req, "peak_command": float(np.max(np.abs(out.commands), initial=0.0))})
+        out.method = "fixed_time"
+        return out
+    system = ModalResponse(problem.model, problem.include_position)
+    x0 = problem.shifted_initial()
+    scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, K * dt, 33))), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+    w = -system.expm_x(K * dt, x0) / scale
+    nu = -np.asarray(continuous.certificate.costate_final, float) * scale
+    S = G @ nu
+    signs = np.where(S >= 0.0, 1.0, -1.0)
+    width = 4
+    while True:
+        free = window_mask(S, width) if width < K else np.ones(K, dtype=bool)
+        sol = solve_peak_lp(G, w, signs, free)
+        if sol is not None:
+            u, t_star, nu_lp = sol
+            if dual_bound(G, w, nu_lp) >= t_star * (1.0 - 1e-9) or free.all():
+                break
+        elif free.all():
+            raise SolverError(f"fixed-time sampled planner: linear program failed at {K} samples")
+        width *= 4
+    if t_star > um * (1.0 + 1e-12):
+        raise SolverError(f"fixed-time sampled planner: {K} samples need peak {t_star:.9g} > u_max = {um}")
+    u_exact = correct_exactly(G, w, u, um)
+    if u_exact is None:
+        raise SolverError("fixed-time sampled planner: exact correction left the bound; nothing is returned")
+    cmds = u_exact[::-1].copy()
+    out = finish_sampled(problem, cmds, dt, continuous, False, fewest.samples, t0)
+    out.method = "fixed_time"
+    out.extra.update({"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)})
+    return out
+

@@ -1,0 +1,13 @@
+"""Input shapers (seed section 2.1.3), shaped profiles and their sensitivity to model error."""
+
+from .sensitivity import (
+    Insensitivity,
+    command_insensitivity,
+    command_vibration,
+    residual_amplitudes,
+    shaper_insensitivity,
+)
+from .shaped_profile import ShapedProfile, plan_shaped, sample_command, shape
+from .shapers import SHAPERS, Shaper, design, multi_mode_direct
+
+__all__ = ["Insensitivity", "SHAPERS", "ShapedProfile", "Shaper", "command_insensitivity", "command_vibration", "design", "multi_mode_direct", "plan_shaped", "residual_amplitudes", "sample_command", "shape", "shaper_insensitivity"]

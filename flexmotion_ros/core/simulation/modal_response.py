@@ -1,0 +1,355 @@
+"""Closed-form responses of the block-diagonal modal model, vectorised over time.
+
+The planners evaluate ``e^{A tau} x``, ``e^{A tau} B``, ``int_0^tau e^{A s} B ds``
+and the switching function ``nu^T e^{A tau} B`` at many times per iteration.
+Each block of ``A`` is 1x1 or 2x2, so these have closed forms: evaluating them
+is a handful of numpy operations instead of a matrix exponential per time.
+
+This module is the planners' *fast* path.  Results are always checked against
+:mod:`flexmotion_ros.core.simulation`, which uses matrix exponentials of the
+full augmented matrix and shares no code with this module.
+
+``tau`` is time-to-go in the planners (seconds before the final time); here it
+is simply a non-negative time argument.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model.modal_model import ModalModel
+
+_SERIES_Z = 0.1  # |c tau| below which phi-functions use their Taylor series
+
+
+def _phi1(z: np.ndarray) -> np.ndarray:
+    """``(e^z - 1) / z`` with the removable singularity at 0 filled in."""
+    z = np.asarray(z, dtype=float)
+    out = np.ones_like(z)
+    big = np.abs(z) >= 1e-12
+    out[big] = np.expm1(z[big]) / z[big]
+    small = ~big
+    out[small] = 1.0 + 0.5 * z[small]
+    return out
+
+
+def _phi2(z: np.ndarray) -> np.ndarray:
+    """``(e^z - 1 - z) / z^2`` accurately near 0 (Taylor series below |z| = 0.1)."""
+    z = np.asarray(z, dtype=float)
+    out = np.empty_like(z)
+    big = np.abs(z) >= _SERIES_Z
+    zb = z[big]
+    out[big] = (np.expm1(zb) - zb) / (zb * zb)
+    zs = z[~big]
+    # sum_{k>=0} z^k / (k+2)!, 9 terms: truncation < 0.1^9/11! ~ 3e-17
+    acc = np.zeros_like(zs)
+    for k in range(8, -1, -1):
+        acc = acc * zs + 1.0 / math.factorial(k + 2)
+    out[~big] = acc
+    return out
+
+
+class ModalResponse:
+    """Closed-form time responses of a :class:`ModalModel`.
+
+    Parameters
+    ----------
+    model : ModalModel
+        The model.
+    include_position : bool
+        ``True``: state ``[p, v, q_1, q_1', ...]``.  ``False``: the rigid-body
+        position is dropped (``[v, q_1, q_1', ...]``), for moves whose final
+        position is free (bring a moving machine to rest, seed eq. 2.13).
+    """
+
+    def __init__(self, model: ModalModel, include_position: bool = True) -> None:
+        self.model = model
+        self.include_position = include_position
+        self.r = 2 if include_position else 1  # rigid-block size
+        self.n = self.r + 2 * model.n_modes
+        self.b0 = model.b0
+        self.c = model.c
+        self.w = np.asarray(model.omega, dtype=float)
+        self.sig = np.asarray(model.zeta, dtype=float) * self.w  # decay rate zeta*omega (1/s)
+        self.wd = model.omega_d
+        self.bm = np.asarray(model.b, dtype=float)
+
+    # -------------------------------------------------------------- matrices
+    def A(self) -> np.ndarray:
+        """State matrix of this (possibly reduced) state."""
+        A = self.model.A()
+        return A if self.include_position else A[1:, 1:]
+
+    def B(self) -> np.ndarray:
+        """Input vector of this (possibly reduced) state."""
+        B = self.model.B()
+        return B if self.include_position else B[1:]
+
+    def reduce(self, x: np.ndarray) -> np.ndarray:
+        """Full state -> this response's state."""
+        x = np.asarray(x, dtype=float)
+        return x if self.include_position else x[1:]
+
+    # ------------------------------------------------------------- responses
+    def _mode_trig(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t = tau[:, None]
+        E = np.exp(-self.sig * t)
+        arg = self.wd * t
+        return E, np.cos(arg), np.sin(arg)
+
+    def expm_B(self, tau: np.ndarray) -> np.ndarray:
+        """``e^{A tau} B`` for each ``tau``, shape ``(len(tau), n)``."""
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        out = np.empty((tau.size, self.n))
+        ect = np.exp(self.c * tau)
+        if self.include_position:
+            out[:, 0] = self.b0 * tau * _phi1(self.c * tau)
+        out[:, self.r - 1] = self.b0 * ect
+        if self.w.size:
+            E, C, S = self._mode_trig(tau)
+            s_wd = self.sig / self.wd
+            out[:, self.r :: 2] = self.bm * E * S / self.wd
+            out[:, self.r + 1 :: 2] = self.bm * E * (C - s_wd * S)
+        return out
+
+    def A_expm_B(self, tau: np.ndarray) -> np.ndarray:
+        """``A e^{A tau} B`` (the time derivative of :meth:`expm_B`)."""
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        out = np.empty((tau.size, self.n))
+        ect = np.exp(self.c * tau)
+        if self.include_position:
+            out[:, 0] = self.b0 * ect
+        out[:, self.r - 1] = self.b0 * self.c * ect
+        if self.w.size:
+            E, C, S = self._mode_trig(tau)
+            s_wd = self.sig / self.wd
+            out[:, self.r :: 2] = self.bm * E * (C - s_wd * S)
+            out[:, self.r + 1 :: 2] = self.bm * E * (
+                -2.0 * self.sig * C + (self.sig**2 - self.wd**2) / self.wd * S
+            )
+        return out
+
+    def input_integral(self, tau: np.ndarray) -> np.ndarray:
+        """``Gamma(tau) = int_0^tau e^{A s} B ds``, shape ``(len(tau), n)``.
+
+        The state reached from rest after a unit input held for ``tau``.
+        """
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        out = np.empty((tau.size, self.n))
+        ct = self.c * tau
+        if self.include_position:
+            out[:, 0] = self.b0 * tau * tau * _phi2(ct)
+        out[:, self.r - 1] = self.b0 * tau * _phi1(ct)
+        if self.w.size:
+            E, C, S = self._mode_trig(tau)
+            t = tau[:, None]
+            # 1 - E (C + sig/wd S), arranged to avoid cancellation at small tau
+            half = np.sin(0.5 * self.wd * t)
+            one_minus = -np.expm1(-self.sig * t) + 2.0 * E * half * half - E * (self.sig / self.wd) * S
+            out[:, self.r :: 2] = self.bm * one_minus / self.w**2
+            out[:, self.r + 1 :: 2] = self.bm * E * S / self.wd
+        return out
+
+    def expm_x(self, tau: float, x: np.ndarray) -> np.ndarray:
+        """``e^{A tau} x`` for one time ``tau`` (s) and a state ``x``."""
+        x = np.asarray(x, dtype=float)
+        out = np.empty(self.n)
+        ct = self.c * tau
+        ect = math.exp(ct)
+        if self.include_position:
+            out[0] = x[0] + x[1] * tau * float(_phi1(np.array([ct]))[0])
+        out[self.r - 1] = x[self.r - 1] * ect
+        if self.w.size:
+            E, C, S = (a[0] for a in self._mode_trig(np.array([tau], dtype=float)))
+            q = x[self.r :: 2]
+            qd = x[self.r + 1 :: 2]
+            s_wd = self.sig / self.wd
+            out[self.r :: 2] = E * (q * (C + s_wd * S) + qd * S / self.wd)
+            out[self.r + 1 :: 2] = E * (-q * self.w**2 / self.wd * S + qd * (C - s_wd * S))
+        return out
+
+    def expm_x_many(self, tau: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """``e^{A tau} x`` for many times ``tau`` (s), shape ``(len(tau), n)``."""
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        x = np.asarray(x, dtype=float)
+        out = np.empty((tau.size, self.n))
+        ct = self.c * tau
+        if self.include_position:
+            out[:, 0] = x[0] + x[1] * tau * _phi1(ct)
+        out[:, self.r - 1] = x[self.r - 1] * np.exp(ct)
+        if self.w.size:
+            E, C, S = self._mode_trig(tau)
+            q = x[self.r :: 2]
+            qd = x[self.r + 1 :: 2]
+            s_wd = self.sig / self.wd
+            out[:, self.r :: 2] = E * (q * (C + s_wd * S) + qd * S / self.wd)
+            out[:, self.r + 1 :: 2] = E * (-q * self.w**2 / self.wd * S + qd * (C - s_wd * S))
+        return out
+
+    def A_x(self, x: np.ndarray) -> np.ndarray:
+        """``A x`` without forming ``A``."""
+        x = np.asarray(x, dtype=float)
+        out = np.empty(self.n)
+        if self.include_position:
+            out[0] = x[1]
+        out[self.r - 1] = self.c * x[self.r - 1]
+        q = x[self.r :: 2]
+        qd = x[self.r + 1 :: 2]
+        out[self.r :: 2] = qd
+        out[self.r + 1 :: 2] = -self.w**2 * q - 2.0 * self.sig * qd
+        return out
+
+    # ---------------------------------------------------- switching function
+    def _trig_basis(self, tau: np.ndarray) -> np.ndarray:
+        """``[e^{-sig tau} sin(wd tau), e^{-sig tau} cos(wd tau)]`` per mode, shape ``(len, 2N)``.
+
+        The last large array is cached by identity: the planners evaluate the
+        switching function on one grid many times while ``T`` is fixed.
+        """
+        if tau is self._basis_tau:
+            return self._basis_val
+        E, C, Sn = self._mode_trig(tau)
+        val = np.concatenate([E * Sn, E * C], axis=1)
+        if tau.size >= 32:
+            self._basis_tau, self._basis_val = tau, val
+        return val
+
+    _basis_tau: np.ndarray | None = None
+    _basis_val: np.ndarray | None = None
+
+    def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False, order: int | None = None):
+        """``S(tau) = nu^T e^{A tau} B`` and its derivatives in ``tau``.
+
+        ``derivative=True`` returns ``(S, S')``; ``order=k`` returns
+        ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one
+        matrix product over the modes for all orders.
+        """
+        k = 0 if order is None else order
+        if derivative and order is None:
+            k = 1
+        tau = tau if isinstance(tau, np.ndarray) and tau.ndim == 1 else np.atleast_1d(np.asarray(tau, dtype=float))
+        nu = np.asarray(nu, dtype=float)
+        c = self.c
+        nv = nu[self.r - 1]
+        if c != 0.0:
+            ect = np.exp(c * tau)
+            lin = tau * _phi1(c * tau)
+        else:
+            ect = None
+            lin = tau
+        if self.include_position:
+            np_ = nu[0]
+            S0 = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
+            d1c = self.b0 * (np_ + nv * c)
+        else:
+            S0 = self.b0 * nv * (ect if ect is not None else 1.0) * np.ones_like(tau)
+            d1c = self.b0 * c * nv
+        if self.w.size:
+            # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig)
+            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+            bb = nu[self.r + 1 :: 2] * self.bm
+            coef = np.empty((2 * self.w.size, k + 1))
+            for j in range(k + 1):
+                coef[: self.w.size, j] = a
+                coef[self.w.size :, j] = bb
+                a, bb = -(a * self.sig + bb * self.wd), a * self.wd - bb * self.sig
+            modal = self._trig_basis(tau) @ coef
+        else:
+            modal = None
+        out = []
+        for j in range(k + 1):
+            if j == 0:
+                col = S0
+            else:  # rigid part: S^(j) = c^(j-1) S'
+                col = d1c * c ** (j - 1) * (ect if ect is not None else 1.0)
+                col = col if isinstance(col, np.ndarray) else np.full(tau.shape, col)
+            out.append(col + modal[:, j] if modal is not None else col)
+        return out[0] if k == 0 else tuple(out)
+
+    def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
+        """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]``.
+
+        Rounding errors in evaluating ``S`` are about ``eps`` times this, which
+        may be far above ``|S|`` when the terms cancel (short moves).
+        """
+        nu = np.asarray(nu, dtype=float)
+        nv = abs(nu[self.r - 1])
+        b0 = abs(self.b0)
+        if self.include_position:
+            m0 = b0 * (abs(nu[0]) * tau_max + nv)
+            m1 = b0 * (abs(nu[0]) + nv * abs(self.c))
+        else:
+            m0 = b0 * nv
+            m1 = b0 * abs(self.c) * nv
+        if self.w.size:
+            bm = np.abs(self.bm)
+            q = np.abs(nu[self.r :: 2]) * bm / self.wd
+            qd = np.abs(nu[self.r + 1 :: 2]) * bm * (1.0 + self.sig / self.wd)
+            m0 += float(np.sum(q + qd))
+            m1 += float(np.sum((q + qd) * self.w))
+        return m0, m1
+
+    def switching_derivative_bound(self, nu: np.ndarray, order: int) -> float:
+        """Upper bound on ``|d^order S / dtau^order|`` over ``tau >= 0`` (``order >= 1``)."""
+        nu = np.asarray(nu, dtype=float)
+        c = abs(self.c)
+        nv = abs(nu[self.r - 1])
+        if self.include_position:
+            bound = abs(self.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
+        else:
+            bound = abs(self.b0) * nv * c**order
+        if self.w.size:
+            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+            amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm)
+            bound += float(np.sum(amp * self.w**order))
+        return bound
+
+    def switching_derivative_bound_from(self, nu: np.ndarray, order: int, tau: np.ndarray) -> np.ndarray:
+        """Upper bound on ``|d^order S / dtau^order|`` over ``[tau, inf)``, for each ``tau``.
+
+        Every term of ``S`` decays (``e^{c tau}``, ``e^{-zeta omega tau}``), so
+        its bound at the start of an interval holds on the whole interval;
+        far from ``tau = 0`` on long, damped moves this is much tighter than
+        :meth:`switching_derivative_bound`.
+        """
+        nu = np.asarray(nu, dtype=float)
+        tau = np.asarray(tau, dtype=float)
+        c = abs(self.c)
+        nv = abs(nu[self.r - 1])
+        if self.include_position:
+            rigid = abs(self.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
+        else:
+            rigid = abs(self.b0) * nv * c**order
+        bound = rigid * np.exp(self.c * tau)
+        if self.w.size:
+            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+            amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm) * self.w**order
+            bound = bound + np.exp(-np.outer(tau, self.sig)) @ amp
+        return bound
+
+    def switching_derivative_bounds(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
+        """Upper bounds on ``|S'|`` and ``|S''|`` over ``[0, tau_max]``.
+
+        Used by the certificate to prove that the switching function has no
+        zeros between sample points (a Lipschitz argument).
+        """
+        nu = np.asarray(nu, dtype=float)
+        b0, c = abs(self.b0), self.c
+        nv = abs(nu[self.r - 1])
+        if self.include_position:
+            npos = abs(nu[0])
+            d1 = b0 * (npos + nv * abs(c))
+            d2 = b0 * abs(c) * (npos + nv * abs(c))
+        else:
+            d1 = b0 * abs(c) * nv
+            d2 = b0 * c * c * nv
+        if self.w.size:
+            nq = nu[self.r :: 2] * self.bm
+            nqd = nu[self.r + 1 :: 2] * self.bm
+            a = nq / self.wd - nqd * self.sig / self.wd
+            amp = np.hypot(a, nqd)  # |a sin + b cos| <= amp; damping only shrinks it
+            d1 += float(np.sum(amp * self.w))  # |(sig + i wd)| = omega
+            d2 += float(np.sum(amp * self.w**2))
+        return d1, d2

@@ -1,0 +1,268 @@
+"""Arrive at a requested time: the lowest force bound whose time-optimal move takes that long.
+
+Several axes or machines arrive together if each arrives, at rest and
+without vibration, at one requested time ``T_req`` no shorter than its own
+optimum ``T*``.  Among all inputs that do so, the one with the smallest peak
+``|u|`` is the time-optimal move for the bound ``u'`` with ``T*(u') = T_req``:
+``T*(u')`` decreases strictly with ``u'`` (reachable sets grow with the
+bound), so an input with a smaller peak would arrive later.  Using less than
+the full force leaves margin for disturbances and model error.
+
+Method
+------
+1. ``T* = T*(u_max)`` from :func:`~.time_optimal.plan_time_optimal`; requests
+   below it are refused (``arrival_time`` must be ``>= T*``).
+2. Safeguarded root-find of ``log T*(u') = log T_req`` in ``log u'``
+   (Brent's method on a bracket; each evaluation a certified time-optimal
+   plan).  For rest-to-rest moves linearity gives an independent check:
+   the move by ``gamma`` at bound ``u'`` is ``u'/u_max`` times the move by
+   ``gamma u_max / u'`` at ``u_max``.
+3. Newton on the switch times and ``u'`` with the duration held at exactly
+   ``T_req`` (closed-form final state and Jacobian), then the exact
+   matrix-exponential check and the Pontryagin certificate at bound ``u'``,
+   which proves ``T_req`` minimal for ``u'`` and so ``u'`` the lowest bound.
+
+The sampled version (:func:`plan_fixed_time_zoh`) is the least-peak linear
+program of :mod:`.zoh` at exactly ``round(T_req * rate_hz)`` samples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import FlexmotionError, SolverError
+from ..model.boundary import MoveProblem
+from ..results import BangBangProfile
+from ..simulation.exact import PiecewiseConstant, simulate
+from ..simulation.modal_response import ModalResponse
+from ..tolerances import FINAL_STATE_RTOL, SAME_TIME_RTOL
+from .certificate import certify
+from .solver import plan_time_optimal
+
+
+def check_arrival_time(arrival_time, T_star: float) -> float:
+    """``arrival_time`` as float if finite and ``>= T*``, else raise naming the parameter and the range."""
+    try:
+        T = float(arrival_time)
+    except (TypeError, ValueError):
+        raise FlexmotionError("arrival_time", f"must be a time in [T*, inf) = [{T_star:.9g}, inf) s, got {arrival_time!r}") from None
+    if not math.isfinite(T) or T < T_star * (1.0 - SAME_TIME_RTOL):
+        raise FlexmotionError(
+            "arrival_time",
+            f"must be in [T*, inf) = [{T_star:.9g}, inf) s (T* is the time-optimal move time at u_max), got {T}",
+        )
+    return max(T, T_star)
+
+
+def _with_bound(problem: MoveProblem, bound: float) -> MoveProblem:
+    return MoveProblem(problem.model, bound, problem.x0, problem.target)
+
+
+def lowest_bound(
+    problem: MoveProblem, arrival_time: float, T_star: float | None = None, xtol: float = 1e-15
+) -> tuple[float, BangBangProfile]:
+    """The bound ``u' <= u_max`` whose time-optimal move takes ``arrival_time`` (root-find; see module notes).
+
+    Returns ``(u', profile at u')``; the profile's duration equals
+    ``arrival_time`` to the root-finder's tolerance (the caller polishes).
+    """
+    um = problem.u_max
+    best = plan_time_optimal(problem)
+    T_star = best.duration if T_star is None else T_star
+    T_req = check_arrival_time(arrival_time, T_star)
+    if T_req <= T_star * (1.0 + SAME_TIME_RTOL):
+        return um, best
+    cache: dict[float, BangBangProfile] = {}
+
+    def f(x: float) -> float:
+        prof = plan_time_optimal(_with_bound(problem, math.exp(x)))
+        cache[x] = prof
+        return math.log(prof.duration) - math.log(T_req)
+
+    x_hi = math.log(um)
+    # T* grows at least like u'^(-1/2) as u' falls (rigid body, from rest); bracket from a guess
+    x_lo = x_hi + 2.0 * math.log(T_star / T_req)
+    f_lo = f(x_lo)
+    while f_lo < 0.0:
+        x_hi, x_lo = x_lo, x_lo - math.log(4.0)
+        f_lo = f(x_lo)
+    x = brentq(f, x_lo, x_hi, xtol=xtol, rtol=4.0 * np.finfo(float).eps, maxiter=200)
+    prof = cache.get(x) or plan_time_optimal(_with_bound(problem, math.exp(x)))
+    return math.exp(x), prof
+
+
+def _polish(problem: MoveProblem, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, max_iter: int = 30):
+    """Newton on ``(t_1..t_L, u')`` with the duration fixed at ``T``: final state exactly at rest.
+
+    ``x(T) = e^{AT} x0 + u' sum_k sign_k (Gamma(T - t_k) - Gamma(T - t_{k+1}))``
+    with ``Gamma(tau) = int_0^tau e^{As} B ds``; ``dx/dt_j = u' (sign_{j-1} - sign_j) e^{A (T - t_j)} B``.
+    """
+    sys = ModalResponse(problem.model, problem.include_position)
+    x0 = problem.shifted_initial()
+    scale = np.abs(x0) + bound * np.max(np.abs(sys.input_integral(np.linspace(0.0, T, 65))), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    eAx = sys.expm_x(T, x0)
+    L = switch_times.size
+
+    def resid(z):
+        t, ub = z[:L], z[L]
+        G = sys.input_integral(T - np.concatenate([[0.0], t, [T]]))
+        contrib = (signs[:, None] * (G[:-1] - G[1:])).sum(axis=0)
+        return (eAx + ub * contrib) / scale, contrib
+
+    z = np.concatenate([switch_times, [bound]])
+    r, contrib = resid(z)
+    rn = float(np.max(np.abs(r)))
+    for _ in range(max_iter):
+        if rn <= 4.0 * np.finfo(float).eps:
+            break
+        J = np.empty((r.size, L + 1))
+        if L:
+            J[:, :L] = (z[L] * (signs[:-1] - signs[1:])[:, None] * sys.expm_B(T - z[:L])).T / scale[:, None]
+        J[:, L] = contrib / scale
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        t = 1.0
+        for _ in range(20):
+            zc = z + t * step
+            ok = zc[L] > 0.0 and (L == 0 or (zc[0] > 0.0 and zc[L - 1] < T and np.all(np.diff(zc[:L]) > 0.0)))
+            if ok:
+                rc, cc = resid(zc)
+                rcn = float(np.max(np.abs(rc)))
+                if rcn < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        z, r, contrib, rn = zc, rc, cc, rcn
+    return z[:L], float(z[L]), rn
+
+
+def _continue_in_time(problem: MoveProblem, best: BangBangProfile, T_req: float):
+    """Follow ``(switch times, u')`` from ``T*`` to ``T_req`` with the switch structure fixed.
+
+    Returns ``(switch_times, u')`` or None if a step fails (the structure changes).
+    """
+    signs = np.sign(best.levels)
+    T, t_sw, ub = best.duration, best.switch_times.copy(), problem.u_max
+    step = 0.25
+    while T < T_req:
+        T_new = min(T_req, T * (1.0 + step))
+        t_g = t_sw * (T_new / T)
+        ub_g = ub * (T / T_new) ** 2
+        t_new, ub_new, res = _polish(problem, T_new, t_g, signs, ub_g)
+        if res <= 1e-13 and ub_new > 0.0:
+            T, t_sw, ub = T_new, t_new, ub_new
+            step = min(2.0 * step, 1.0)
+        else:
+            step *= 0.25
+            if step < 1e-4:
+                return None
+    return t_sw, ub
+
+
+def plan_fixed_time(problem: MoveProblem, arrival_time: float) -> BangBangProfile:
+    """Vibration-free move arriving at rest at exactly ``arrival_time`` with the least peak force.
+
+    Parameters
+    ----------
+    problem : MoveProblem
+    arrival_time : float
+        Requested move time ``T_req`` (s), ``>= T*`` (the time-optimal time at ``u_max``).
+
+    Returns
+    -------
+    BangBangProfile
+        ``method = "fixed_time"``, ``duration == arrival_time``, levels
+        ``+-u'`` with ``u' <= u_max`` (``extra["bound_used"]``); the
+        certificate is the Pontryagin certificate at bound ``u'``.
+
+    Raises
+    ------
+    FlexmotionError
+        ``arrival_time`` below ``T*`` or not finite (names ``arrival_time`` and the range).
+    SolverError
+        No profile passes the exact final-state check.
+    """
+    t0 = time.perf_counter()
+    best = plan_time_optimal(problem)
+    T_star = best.duration
+    T_req = check_arrival_time(arrival_time, T_star)
+    if best.duration == 0.0:  # already at rest: hold still until the requested time
+        return _assemble(problem, T_req, np.empty(0), np.array([1.0]), 0.0, best, T_star, t0)
+    # fast path: continuation in the duration from T*, Newton on (switch times, u') at each step
+    cont = _continue_in_time(problem, best, T_req)
+    if cont is not None:
+        switch_times, bound = cont
+        out = _assemble(problem, T_req, switch_times, np.sign(best.levels), min(bound, problem.u_max), best, T_star, t0)
+        if out.certified and bound <= problem.u_max:
+            return out
+    # otherwise a loose root-find on u' fixes the switch structure; Newton at T_req the rest
+    for xtol in (1e-6, 1e-15):
+        bound, prof = lowest_bound(problem, T_req, T_star, xtol)
+        signs = np.sign(prof.levels)
+        if bound >= problem.u_max and T_req <= T_star * (1.0 + SAME_TIME_RTOL):
+            return _assemble(problem, T_star, prof.switch_times, signs, problem.u_max, prof, T_star, t0)
+        switch_times, bound, _ = _polish(problem, T_req, prof.switch_times * (T_req / prof.duration), signs, bound)
+        if bound > problem.u_max:
+            if bound > problem.u_max * (1.0 + 1e-9):
+                raise SolverError(f"fixed-time planner needs bound {bound} > u_max = {problem.u_max}; nothing is returned")
+            bound = problem.u_max
+        out = _assemble(problem, T_req, switch_times, signs, bound, prof, T_star, t0)
+        if out.certified:
+            break
+    return out
+
+
+def _assemble(problem, T, switch_times, signs, bound, ref: BangBangProfile, T_star: float, t0: float) -> BangBangProfile:
+    levels = bound * np.asarray(signs, float)
+    u = PiecewiseConstant.from_switches(switch_times, levels, T)
+    x0s = problem.shifted_initial()
+    sysr = ModalResponse(problem.model, problem.include_position)
+    states = simulate((sysr.A(), sysr.B()), x0s, u)  # the independent matrix-exponential check
+    xT = states[-1]
+    sc = np.abs(x0s) + np.max(np.abs(states), axis=0)
+    sc = np.where(sc > 0.0, sc, 1.0)
+    err = float(np.max(np.abs(xT))) if xT.size else 0.0
+    rel = float(np.max(np.abs(xT) / sc)) if xT.size else 0.0
+    if bound > 0.0 and T > 0.0:
+        # co-state direction: the reference one, projected onto the directions that vanish at the switches
+        nu = -np.asarray(ref.certificate.costate_final, float)
+        if len(switch_times):
+            E = sysr.expm_B(T - np.asarray(switch_times))  # rows: e^{A tau_j} B, nu must be orthogonal
+            if E.shape[0] >= nu.size - 1:
+                nu = np.linalg.svd(E)[2][-1]  # the (numerical) null direction
+            else:
+                Q, _ = np.linalg.qr(E.T)
+                nu = nu - Q @ (Q.T @ nu)
+            # orientation: S must have the sign of the first level just after the start
+            tau0 = T - 0.5 * float(np.concatenate([switch_times, [T]])[0])
+            if np.sign(sysr.switching(nu, np.array([tau0]))[0]) != np.sign(levels[0]):
+                nu = -nu
+        cert = certify(sysr, nu, T, bound, switch_times, levels, states)
+    else:
+        cert = ref.certificate
+    final_abs = simulate(problem.model, problem.x0, u, times=[T])[0]
+    prof = BangBangProfile(
+        problem=problem,
+        switch_times=np.asarray(switch_times, float),
+        levels=levels,
+        duration=float(T),
+        final_state=final_abs,
+        final_state_error=err,
+        final_state_error_relative=rel,
+        certificate=cert,
+        solve_time_s=time.perf_counter() - t0,
+        method="fixed_time",
+        extra={"bound_used": float(bound), "time_optimal_duration": float(T_star)},
+    )
+    if not rel <= FINAL_STATE_RTOL or np.max(np.abs(levels), initial=0.0) > problem.u_max:
+        raise SolverError(
+            f"fixed-time planner missed the target: relative final-state error {rel:.3e}; nothing is returned"
+        )
+    return prof
+
+

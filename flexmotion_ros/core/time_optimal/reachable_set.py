@@ -1,0 +1,357 @@
+"""The convex dual of time-optimal reachability, and Newton methods on it.
+
+In time-to-go ``tau = T - t``, a co-state direction ``nu`` (``nu = -lambda(T)``
+up to a positive factor) gives the Pontryagin input
+``u(tau) = u_max sgn(nu^T e^{A tau} B)`` and the final state::
+
+    F(nu, T) = e^{A T} x0 + grad h_T(nu),   h_T(nu) = u_max int_0^T |nu^T e^{A tau} B| dtau
+
+``h_T`` is the support function of the set reachable in time ``T``: convex in
+``nu``.  ``x0`` can be brought to rest in time ``T`` iff
+``m(T) = min {h_T(nu) : nu^T w = 1} >= 1`` with ``w = -e^{A T} x0``, and ``m``
+is non-decreasing in ``T``: the optimal time is the root of ``m(T) = 1``.
+
+This module holds the pieces: the shooting map and its derivatives
+(:class:`Shooting`), the exact inner problem by a trust-region Newton method
+(:func:`inner_exact`), a smoothed discretised version for cold starts
+(:func:`inner_smooth`), the outer iteration on ``T`` (:func:`outer_newton`)
+and a joint Newton polish on ``(nu, T)`` (:func:`polish`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .switching import find_roots, sample_grid
+
+
+@dataclass
+class Evaluation:
+    roots: np.ndarray  # switching times-to-go
+    signs: np.ndarray  # sign of S on each tau-interval (len(roots) + 1)
+    F: np.ndarray  # scaled final state
+    grad: np.ndarray  # scaled grad h
+    h: float
+    eAx: np.ndarray  # e^{A T} x0 (unscaled)
+    H: np.ndarray | None = None  # scaled Hessian of h
+    FT: np.ndarray | None = None  # scaled dF/dT
+
+
+def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
+    """How large each state can get in a move of length ``T`` (state units).
+
+    ``|x0| + u_max max_{tau <= T} |Gamma(tau)|``: the scale against which a
+    final-state error is judged.  It does not depend on the profile, so a
+    profile that barely excites a mode is not judged against that mode's tiny
+    excursion.
+    """
+    # uniform points plus geometric ones near 0: a fast, damped mode peaks
+    # (and decays) long before T on a long move
+    grid = np.concatenate([np.linspace(0.0, T, 65), np.geomspace(T * 1e-6, T, 61)])
+    G = system.input_integral(grid)
+    s = _free_motion_scale(system, np.asarray(x0, dtype=float), T) + u_max * np.max(np.abs(G), axis=0)
+    return np.where(s > 0.0, s, 1.0)
+
+
+def _free_motion_scale(system, x0: np.ndarray, T: float) -> np.ndarray:
+    """How large the initial state alone makes each state over ``[0, T]``.
+
+    A mode's position and velocity share one vibration amplitude (a mode
+    released with speed only still swings), and an initial speed carries the
+    position along; for systems without that structure, ``|x0|``.
+    """
+    out = np.abs(x0).copy()
+    w = getattr(system, "w", None)
+    r = getattr(system, "r", None)
+    if w is None or r is None or out.size != r + 2 * np.size(w):
+        return out
+    if r == 2:
+        out[0] += abs(x0[1]) * T
+    q, qd = x0[r::2], x0[r + 1 :: 2]
+    amp = np.hypot(q, (qd + system.sig * q) / system.wd)
+    out[r::2] = np.maximum(out[r::2], amp)
+    out[r + 1 :: 2] = np.maximum(out[r + 1 :: 2], amp * w)
+    return out
+
+
+class Shooting:
+    """The final-state map and its derivatives for one problem."""
+
+    def __init__(self, system, x0: np.ndarray, u_max: float, T_scale: float) -> None:
+        self.sys = system
+        self.x0 = x0
+        self.u_max = u_max
+        self.set_scale(T_scale)
+        self.evaluations = 0
+
+    def set_scale(self, T: float) -> None:
+        """Per-state scale: how large each state gets during a move of length ``T``."""
+        self.s = state_scale(self.sys, self.x0, self.u_max, T)
+
+    def evaluate(self, nuh: np.ndarray, T: float, jac: bool = True) -> Evaluation:
+        self.evaluations += 1
+        sys, s, um = self.sys, self.s, self.u_max
+        nu = nuh / s
+        roots, sign0 = find_roots(sys, nu, T, sample_grid(sys, T))
+        L = roots.size
+        signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+        G = sys.input_integral(np.append(roots, T))
+        grad = um * (signs[-1] * G[-1] + 2.0 * (signs[:-1, None] * G[:-1]).sum(axis=0))
+        eAx = sys.expm_x(T, self.x0)
+        e = Evaluation(roots, signs, (eAx + grad) / s, grad / s, float(nu @ grad), eAx)
+        if jac:
+            g = sys.expm_B(roots) / s if L else np.zeros((0, s.size))
+            if L:
+                _, dS = sys.switching(nu, roots, derivative=True)
+                wts = 2.0 * um / np.maximum(np.abs(dS), 1e-300)
+                e.H = (g.T * wts) @ g
+            else:
+                e.H = np.zeros((s.size, s.size))
+            e.FT = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
+        return e
+
+
+def null_basis(v: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the complement of ``v`` (columns)."""
+    Q, _ = np.linalg.qr(v.reshape(-1, 1), mode="complete")
+    return Q[:, 1:]
+
+
+def trust_step(g: np.ndarray, H: np.ndarray, radius: float) -> tuple[np.ndarray, bool]:
+    """Minimise ``g.d + d.H.d/2`` over ``|d| <= radius`` (``H`` PSD, exact, by eigenvalues).
+
+    Returns the step and whether it is the unconstrained Newton step.
+    """
+    if g.size == 0:  # nothing to optimise (a one-state system)
+        return np.zeros(0), True
+    lam, V = np.linalg.eigh(H)
+    lam = np.maximum(lam, 0.0)
+    gh = V.T @ g
+    tiny = 1e-14 * max(float(lam[-1]), 1e-300)
+    if lam[0] > tiny:
+        d = -(gh / lam)
+        if np.linalg.norm(d) <= radius:
+            return V @ d, True
+    # find mu > 0 with |d(mu)| = radius (More-Sorensen Newton on 1/|d|)
+    mu = max(float(np.linalg.norm(g)) / radius - float(lam[0]), 1e-300)
+    for _ in range(50):
+        d = -(gh / (lam + mu))
+        nd = float(np.linalg.norm(d))
+        if abs(nd - radius) <= 1e-3 * radius:
+            break
+        dnd = -float(np.sum(gh**2 / (lam + mu) ** 3)) / nd  # d|d|/dmu
+        mu_new = mu - (nd - radius) / dnd * (nd / radius)
+        mu = mu_new if mu_new > 0.0 else 0.1 * mu
+    return V @ d, False
+
+
+def gram_metric(sh: Shooting, T: float, Z: np.ndarray) -> np.ndarray:
+    """``P`` with ``|P^T d|`` = the L2 norm on ``[0, T]`` of the change ``Z d`` makes in ``S``.
+
+    The trust region of :func:`inner_exact` is measured in this norm, i.e. by
+    how much a step changes the switching function, not by the size of the
+    co-state step.  For short moves (``omega T << 1``) the map from ``nu`` to
+    ``S`` is as ill-conditioned as a Vandermonde matrix, and a Euclidean trust
+    region would crawl along the weak directions.
+    """
+    grid = sample_grid(sh.sys, T)
+    wq = np.full(grid.size, grid[1] - grid[0])
+    wq[[0, -1]] *= 0.5
+    GZ = (sh.sys.expm_B(grid) / sh.s) @ Z
+    W = (GZ.T * wq) @ GZ
+    lam, V = np.linalg.eigh(W)
+    lam = np.maximum(lam, 1e-30 * max(float(lam[-1]), 1e-300))
+    return V * np.sqrt(lam)  # W = P P^T
+
+
+def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 100, rtol: float = 1e-14):
+    """Minimise ``h_T`` on ``{nu : nu^T w = 1}`` (convex), by a trust-region Newton method.
+
+    The trust region bounds the change in the switching function
+    (:func:`gram_metric`).  Returns ``(nuh, m, dm/dT, eval)``.
+    """
+    w = -sh.sys.expm_x(T, sh.x0) / sh.s
+    if nuh is None or float(nuh @ w) <= 0.0:
+        nuh = w / float(w @ w)
+    else:
+        nuh = nuh / float(nuh @ w)
+    Z = null_basis(w)
+    P = gram_metric(sh, T, Z)
+    Pinv = np.linalg.inv(P)  # coordinates y = P^T d: |y| = |change in S|
+    e = sh.evaluate(nuh, T)
+    radius = 0.5 * _s_norm(sh, nuh, T)
+    for _ in range(max_iter):
+        g = Pinv @ (Z.T @ e.grad)  # gradient and Hessian in y
+        Hr = Pinv @ (Z.T @ e.H @ Z) @ Pinv.T
+        y, newton = trust_step(g, Hr, radius)
+        pred = -float(g @ y + 0.5 * y @ Hr @ y)
+        if pred <= rtol * max(e.h, 1e-300) or radius <= 1e-15 * _s_norm(sh, nuh, T):
+            break
+        cand = nuh + Z @ (Pinv.T @ y)
+        ec = sh.evaluate(cand, T)
+        rho = (e.h - ec.h) / pred
+        if rho < 0.25:
+            radius = 0.25 * float(np.linalg.norm(y))
+        elif rho > 0.75 and not newton:
+            radius *= 2.0
+        if ec.h < e.h:
+            nuh, e = cand, ec
+    nu = nuh / sh.s
+    S_T = float(sh.sys.switching(nu, np.array([T]))[0])
+    dm = sh.u_max * abs(S_T) + e.h * float(nu @ sh.sys.A_x(e.eAx))
+    return nuh, e.h, dm, e
+
+
+def _s_norm(sh: Shooting, nuh: np.ndarray, T: float) -> float:
+    """L2 norm of the switching function of ``nuh`` on ``[0, T]`` (trapezoidal rule)."""
+    grid = sample_grid(sh.sys, T)
+    S = sh.sys.switching(nuh / sh.s, grid)
+    wq = np.full(grid.size, grid[1] - grid[0])
+    wq[[0, -1]] *= 0.5
+    return math.sqrt(float(wq @ (S * S)))
+
+
+def polish(sh: Shooting, nuh: np.ndarray, T: float, max_iter: int = 40):
+    """Newton on ``F(nu, T) = 0`` jointly; ``nu`` kept on the unit sphere."""
+    nuh = nuh / np.linalg.norm(nuh)
+    e = sh.evaluate(nuh, T)
+    r = float(np.max(np.abs(e.F)))
+    for _ in range(max_iter):
+        if r <= 4.0 * np.finfo(float).eps:
+            break
+        Z = null_basis(nuh)
+        J = np.column_stack([e.H @ Z, e.FT])
+        step, *_ = np.linalg.lstsq(J, -e.F, rcond=1e-14)
+        t = 1.0
+        improved = False
+        for _ in range(12):
+            cand = nuh + t * (Z @ step[:-1])
+            cand /= np.linalg.norm(cand)
+            Tc = T + t * step[-1]
+            if Tc > 0.0:
+                ec = sh.evaluate(cand, Tc)
+                rc = float(np.max(np.abs(ec.F)))
+                if rc < r:
+                    improved = True
+                    break
+            t *= 0.5
+        if not improved:
+            break
+        nuh, T, e, r = cand, Tc, ec, rc
+    return nuh, T, e, r
+
+
+def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float, max_iter: int = 50):
+    """Smoothed, discretised inner problem: a warm start for the exact one.
+
+    ``|S|`` is replaced by ``sqrt(S^2 + eps^2) - eps`` and the integral by the
+    trapezoidal rule on the bracketing grid: a smooth, strictly convex
+    function of ``nu``, so Newton's method with a line search converges fast
+    from any start, whatever the number of switches.
+    """
+    sys, s, um = sh.sys, sh.s, sh.u_max
+    grid = sample_grid(sys, T)
+    wq = np.full(grid.size, grid[1] - grid[0])
+    wq[[0, -1]] *= 0.5
+    Gm = sys.expm_B(grid) / s
+    eAx = sys.expm_x(T, sh.x0)
+    w = -eAx / s
+    if nuh is None or float(nuh @ w) <= 0.0:
+        nuh = w / float(w @ w)
+    else:
+        nuh = nuh / float(nuh @ w)
+    Z = null_basis(w)
+    S = Gm @ nuh
+    # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve)
+    eps = eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
+
+    def value(S):
+        return um * float(wq @ (np.sqrt(S * S + eps * eps) - eps))
+
+    f = value(S)
+    for _ in range(max_iter):
+        sq = np.sqrt(S * S + eps * eps)
+        g = Z.T @ (um * (Gm.T @ (wq * S / sq)))
+        GZ = Gm @ Z
+        Hr = um * ((GZ.T * (wq * eps * eps / sq**3)) @ GZ)
+        try:
+            dy = -np.linalg.solve(Hr, g)
+        except np.linalg.LinAlgError:
+            dy = -g
+        dec = -float(g @ dy)
+        if dec <= 1e-14 * f:
+            break
+        t = 1.0
+        step = Z @ dy
+        dS = Gm @ step
+        for _ in range(40):
+            fc = value(S + t * dS)
+            if fc <= f - 0.25 * t * dec:
+                break
+            t *= 0.5
+        else:
+            break
+        nuh = nuh + t * step
+        S = S + t * dS
+        f = fc
+    nu = nuh / s
+    mu = um * float(wq @ (S * S / np.sqrt(S * S + eps * eps)))  # Lagrange multiplier nu.grad h
+    dm = um * (math.sqrt(S[-1] ** 2 + eps * eps) - eps) + mu * float(nu @ sys.A_x(eAx))
+    return nuh, f, dm
+
+
+def bracketed_step(T: float, m: float, dm: float, lo: float, hi: float) -> tuple[float, float, float]:
+    """Narrow the bracket ``[lo, hi]`` of the optimal time with ``m(T)``, then take :func:`next_time`.
+
+    ``m`` is non-decreasing in ``T``: ``m(T) < 1`` puts the root above ``T``,
+    otherwise at or below it.  Returns ``(T_next, lo, hi)`` (s).
+    """
+    if m < 1.0:
+        lo = max(lo, T)
+    else:
+        hi = min(hi, T)
+    return next_time(T, m, dm, lo, hi), lo, hi
+
+
+def next_time(T: float, m: float, dm: float, lo: float, hi: float) -> float:
+    """One safeguarded Newton step on ``log m(T) = 0`` in ``log T``.
+
+    ``m`` behaves like a power of ``T`` (for short moves a high one: the
+    reachable set of an integrator chain grows like ``T^k``), so Newton in
+    logarithms converges where Newton on ``m - 1`` would jump far; steps are
+    capped at a factor 4 and kept inside the bracket ``(lo, hi)``.
+    """
+    if m > 0.0 and dm > 0.0:
+        elasticity = T * dm / m  # d log m / d log T
+        Tn = T * math.exp(max(-math.log(4.0), min(math.log(4.0), -math.log(m) / elasticity)))
+    else:
+        Tn = math.nan
+    if not (lo < Tn < hi):
+        Tn = 2.0 * T if math.isinf(hi) else (0.5 * (lo + hi) if lo > 0.0 else 0.5 * hi)
+    return Tn
+
+
+def outer_newton(inner, T_low: float, T: float, nuh, tol: float, max_outer: int = 100):
+    """Solve ``m(T) = 1`` (``m`` non-decreasing) by :func:`next_time` steps.
+
+    ``inner(T, nuh) -> (nuh, m, dm/dT)``.  Returns ``(nuh, T)``.
+    """
+    lo, hi = T_low, math.inf
+    for _ in range(max_outer):
+        nuh, m, dm = inner(T, nuh)
+        if abs(m - 1.0) <= tol:
+            break
+        Tn, lo, hi = bracketed_step(T, m, dm, lo, hi)
+        if abs(Tn - T) <= 1e-15 * T:
+            break
+        T = Tn
+    return nuh, T
+
+
+def rescale(sh: Shooting, nuh: np.ndarray, T: float) -> np.ndarray:
+    nu = nuh / sh.s
+    sh.set_scale(T)
+    return nu * sh.s

@@ -1,0 +1,397 @@
+"""Certified time-optimal bang-bang moves (seed section 2.3).
+
+Method
+------
+Work in time-to-go ``tau = T - t``.  For a co-state direction ``nu`` (``nu =
+-lambda(T)`` up to a positive factor) the Pontryagin input is
+``u(tau) = u_max sgn(nu^T e^{A tau} B)`` and the final state is::
+
+    F(nu, T) = e^{A T} x0 + grad h_T(nu),   h_T(nu) = u_max int_0^T |nu^T e^{A tau} B| dtau
+
+``h_T`` is the support function of the set reachable in time ``T``: convex in
+``nu``.  ``x0`` can be brought to rest in time ``T`` iff
+``m(T) = min {h_T(nu) : nu^T w = 1} >= 1`` with ``w = -e^{A T} x0``, and ``m``
+is non-decreasing in ``T``.  So the optimal time is the root of ``m(T) = 1``:
+
+1. *Inner* (fixed ``T``): minimise the convex ``h_T`` on the hyperplane with a
+   damped Newton method.  Convexity makes this globally convergent from any
+   start; no guess of the number of switches is needed: the switches are the
+   zeros of the switching function at the current ``nu``, found on a grid.
+2. *Outer*: safeguarded Newton on ``m(T) = 1`` (``dm/dT`` by the envelope
+   theorem), bracketed from below by the rigid-body optimum.
+3. *Polish*: Newton on ``F(nu, T) = 0`` jointly (quadratic convergence) to
+   machine precision.
+
+Fast path: from the smoothed co-state of step 1, Newton on the switch times
+(:mod:`flexmotion_ros.core.structure_guess`) usually reaches the optimum
+without the exact inner problems; its result is kept only if it passes the
+checks below (else the full solver runs, unchanged).  ``profile.extra``
+says which path answered (``"solver_path"``).
+
+The result is then checked independently: the final state by
+matrix-exponential simulation, optimality by the Pontryagin certificate
+(:mod:`flexmotion_ros.core.certificate`).  A profile whose final state misses
+the target is never returned.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SolverError
+from ..model.boundary import MoveProblem
+from ..results import BangBangProfile, Certificate
+from ..simulation.exact import PiecewiseConstant, simulate
+from ..simulation.modal_response import ModalResponse
+from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
+from .certificate import certify
+from .reachable_set import (
+    Shooting,
+    bracketed_step,
+    inner_exact,
+    inner_smooth,
+    outer_newton,
+    polish,
+    rescale,
+    state_scale,
+)
+from .rigid_body import rigid_profile, rigid_time
+from .structure_guess import newton_from_guess
+from .switch_newton import structure_newton
+
+__all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
+
+#: Smoothing levels (relative to the mean |S|) of the warm-start stage.
+SMOOTHING = (0.02, 0.002)
+#: The fast path's second guess, if the first fails: smoothed inner problems at
+#: this finer level, from the warm start (sharper near-tangencies of ``S``:
+#: short blips of the optimum show).  0: no second guess.
+FINE_SMOOTHING = 2e-4
+#: Try the guess-Newton-certify fast path (:mod:`.structure_guess`) before the
+#: full solver.  This changes speed, and possibly the last bits of the result
+#: (both paths converge to the same optimum from different starts); the
+#: verdict is the certificate's either way: the fast path returns only a
+#: profile that passed the same simulation and certificate as the full
+#: solver's, and otherwise the full solver runs (tests compare both).
+FAST_PATH = True
+
+
+def _smoothed_start(
+    sh: Shooting, T_low: float, T_init: float, levels: tuple[float, ...] = SMOOTHING, nuh: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
+    """Co-state direction (scaled) and time (s) from smoothed inner problems.
+
+    Cheap, robust and blind to the number of switches: decreasing smoothing
+    (``levels``) brings ``T`` close to the optimum.  The first stage of
+    :func:`_solve`, and the guesses of the fast path.  ``nuh``: a warm start
+    (scaled), if any.  Leaves ``sh`` unchanged.
+    """
+    T = max(T_init, T_low, 1e-300)
+    for eps in levels:
+        lo, hi = T_low, math.inf
+        for _ in range(12):
+            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
+            if m > 0.0 and abs(math.log(m)) < 1e-3:
+                break
+            T, lo, hi = bracketed_step(T, m, dm, lo, hi)
+    return nuh, T
+
+
+def _solve(
+    sh: Shooting, T_low: float, T_init: float, start: tuple[np.ndarray, float] | None = None
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
+    """Optimal time and co-state direction.  ``T_low`` is a proved lower bound (may be 0).
+
+    ``start``: the result of :func:`_smoothed_start` for the same ``sh``,
+    ``T_low`` and ``T_init``, if already computed (it is deterministic).
+
+    1. A smoothed, discretised version of the convex inner problem at the
+       first guess, then the exact one (trust region), give a co-state
+       direction and so a switch structure (any number of switches).
+    2. Newton on switch times, co-state and ``T`` together converges
+       quadratically from that structure; wrong structures are corrected from
+       the zeros of the switching function (:func:`structure_newton`).
+    3. If that fails, the exact inner problem drives a safeguarded Newton
+       iteration on ``log m(T) = 0`` until ``m`` is within 1e-3 of 1 and step 2
+       is tried again; as a last resort the nested iteration runs to full
+       accuracy and a joint Newton polish on ``(nu, T)`` finishes.
+    The caller certifies whatever comes out.
+    """
+    # smoothed inner problems (cheap, robust, any structure) bring T close to
+    # the optimum ...
+    nuh, T = start if start is not None else _smoothed_start(sh, T_low, T_init)
+    # ... where the exact inner problem gives the switch structure
+    nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=30, rtol=1e-12)
+    nuh = rescale(sh, nuh, T)
+    found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+    if found is not None:
+        return found
+    # otherwise, from the first guess again: exact inner problems on T, trying
+    # the switch-time Newton whenever m comes markedly closer to 1
+    T = max(T_init, T_low, 1e-300)
+    nuh, _, _ = inner_smooth(sh, T, None, SMOOTHING[0])
+    lo, hi = T_low, math.inf
+    tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
+    for _ in range(60):
+        nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
+        if e.roots.size > MAX_SWITCHES:
+            raise SolverError(
+                f"the optimal move needs about {e.roots.size} switches over {T:.4g} s (more than "
+                f"{MAX_SWITCHES}): the actuator is too weak for this state; raise u_max or start "
+                "from a calmer state"
+            )
+        gap = abs(m - 1.0)
+        # the switch structure is often right long before T is: try the
+        # switch-time Newton whenever m has come markedly closer to 1
+        if gap < 0.5 and gap < 0.25 * tried_gap or tried_gap == math.inf:
+            tried_gap = gap
+            nuh = rescale(sh, nuh, T)
+            found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+            if found is not None:
+                return found
+        if gap <= 1e-11:
+            break
+        T, lo, hi = bracketed_step(T, m, dm, lo, hi)
+    # last resort: full-accuracy nested iteration, then the joint Newton polish
+    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11)
+    nuh = rescale(sh, nuh, T)
+    nuh, T, e, r = polish(sh, nuh, T)
+    if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
+        found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+        if found is not None:
+            return found
+    return nuh, T, e.roots, e.signs, r
+
+
+@dataclass
+class BangBangSolution:
+    """Raw solver output for a linear system in time-to-go form.
+
+    Attributes
+    ----------
+    nu : ndarray
+        Dual direction ``-lambda(T)`` (any positive scale).
+    duration : float
+        Optimal time ``T`` (s).
+    switch_times : ndarray
+        Forward switching times (s).
+    levels : ndarray
+        Input on each interval (``+-u_max``).
+    """
+
+    nu: np.ndarray
+    duration: float
+    switch_times: np.ndarray
+    levels: np.ndarray
+
+
+def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: float) -> BangBangSolution:
+    """Time-optimal bang-bang input bringing ``x0`` to the origin, for any system object.
+
+    ``system`` must offer what :class:`ModalResponse` offers (``n``, ``A()``,
+    ``B()``, ``expm_B``, ``input_integral``, ``expm_x``, ``A_x``,
+    ``switching(nu, tau, order=k)``, ``switching_magnitude``,
+    ``switching_derivative_bound`` and an array ``wd`` of its oscillation
+    frequencies, used for the grid).  ``T_low`` must be a proved lower bound
+    (0 if none); ``T_init`` a first guess.  The result is not yet checked:
+    simulate it and certify it (:func:`~flexmotion_ros.core.certificate.certify`).
+    """
+    x0 = np.asarray(x0, dtype=float)
+    sh = Shooting(system, x0, u_max, max(T_init, 1e-300))
+    nuh, T, roots, signs, _ = _solve(sh, T_low, T_init)
+    switch_times = np.clip(np.sort(T - roots), 0.0, T)
+    return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
+
+def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
+    """Time-optimal bang-bang input for a move to rest, with certificate.
+
+    Parameters
+    ----------
+    problem : MoveProblem
+        Model, bound, initial state and target (see :mod:`.boundary`).
+
+    Returns
+    -------
+    BangBangProfile
+
+    Raises
+    ------
+    SolverError
+        If no profile passes the exact final-state check.
+    """
+    t0 = time.perf_counter()
+    model, um = problem.model, problem.u_max
+    system = ModalResponse(model, problem.include_position)
+    x0 = problem.shifted_initial()
+    if not np.any(np.abs(x0) > AT_REST):
+        profile = _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
+        profile.extra["solver_path"] = "at_rest"
+        return profile
+    rigid = rigid_profile(model, um, x0, problem.include_position)
+    T_low = rigid.duration
+    if _rigid_is_optimal(system, x0, um, rigid):
+        nu = np.zeros(system.n)
+        nu[: system.r] = rigid.nu
+        roots = np.sort(T_low - rigid.switch_times)
+        profile = _assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
+        profile.extra["solver_path"] = "rigid"
+        return profile
+    # a first guess: the rigid time plus a quarter period of the slowest mode
+    T_init = T_low + (0.5 * math.pi / min(model.omega) if model.omega else 0.0)
+    sh = Shooting(system, x0, um, T_init)
+    T_lb = T_low * (1.0 - 1e-12)
+    start = _smoothed_start(sh, T_lb, T_init)
+    fast_error = None
+    if FAST_PATH:
+        fast, fast_error = _fast_path(problem, system, copy.copy(sh), start, t0, T_low)
+        if fast is not None:
+            return fast
+    # the full solver, exactly as without the fast path (``sh`` is untouched)
+    nuh, T, roots, signs, _ = _solve(sh, T_lb, T_init, start)
+    profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+    profile.extra["solver_path"] = "full"
+    if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
+        profile.extra["fast_path_error"] = fast_error
+    return profile
+
+
+def _fast_path(
+    problem: MoveProblem,
+    system: ModalResponse,
+    sh: Shooting,
+    start: tuple[np.ndarray, float],
+    t0: float,
+    T_low: float,
+) -> tuple[BangBangProfile | None, str | None]:
+    """Guess, Newton, certify (:mod:`.structure_guess`).
+
+    The switch-time Newton runs from the structure of the smoothed co-state
+    ``start`` (then, if that fails, of a finer smoothing level:
+    :data:`FINE_SMOOTHING`), skipping the exact inner problems.  Every
+    candidate goes through the same exact simulation and certificate as the
+    full solver's result (:func:`_assemble`), and is kept only if the
+    final-state check and the certificate's full sign test pass (not merely
+    the gap to the rigid bound: that close to it, the full solver decides).
+
+    Parameters
+    ----------
+    problem : MoveProblem
+        The move (model, ``u_max``, initial state, target).
+    system : ModalResponse
+        Its closed-form responses (state with or without the position).
+    sh : Shooting
+        The shooting problem ``start`` was computed for; modified (rescaled):
+        pass a copy.
+    start : tuple of (ndarray, float)
+        :func:`_smoothed_start`'s result: scaled co-state direction
+        (``nu * sh.s``, dimensionless) and duration guess (s).
+    t0 : float
+        :func:`time.perf_counter` at the start of planning (s), for
+        ``solve_time_s``.
+    T_low : float
+        Proved lower bound on the optimal time (s): the rigid body's.
+
+    Returns
+    -------
+    profile : BangBangProfile or None
+        The certified profile, with ``extra["solver_path"] = "fast"`` and
+        ``extra["fast_path_candidates"]``; None if no candidate passed (the
+        caller then runs the full solver).
+    error : str or None
+        ``repr`` of an exception raised inside the fast path (a bug: the
+        caller falls back to the full solver and records it in
+        ``extra["fast_path_error"]``), else None.
+    """
+
+    candidates = 0
+    sh0 = copy.copy(sh)  # the scale of ``start``
+
+    def check(nuh, T, roots, signs):
+        nonlocal candidates
+        candidates += 1
+        try:
+            # raises SolverError unless the final-state error is within FINAL_STATE_RTOL
+            profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+        except SolverError:  # the target missed: no structure information either
+            return None, None, 0.0
+        cert = profile.certificate
+        if cert.passed and cert.message == "ok":
+            return profile, None, 0.0
+        return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+
+    try:
+        nuh = rescale(sh, start[0], start[1])
+        tried = []  # switch structures tried (not to be tried again)
+        profile = newton_from_guess(sh, nuh, start[1], check, tried, max_switches=MAX_SWITCHES)
+        if profile is None and FINE_SMOOTHING:
+            # a second guess from finer smoothing: short blips of the optimum
+            # that the first level rounds off show up as sign changes (a
+            # structure already tried is not tried again)
+            sh = copy.copy(sh0)
+            nuh, T = _smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0])
+            profile = newton_from_guess(sh, rescale(sh, nuh, T), T, check, tried, max_switches=MAX_SWITCHES)
+    except Exception as exc:  # noqa: BLE001 - whatever went wrong, the full solver decides
+        return None, repr(exc)
+    if profile is not None:
+        profile.extra["solver_path"] = "fast"
+        profile.extra["fast_path_candidates"] = candidates  # extremals certified (1 + structure corrections)
+    return profile, None
+
+
+def _rigid_is_optimal(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> bool:
+    """Whether the rigid body's optimum also leaves every mode at rest (then it is optimal)."""
+    if rigid.duration == 0.0 or system.n == system.r:
+        return system.n == system.r
+    T = rigid.duration
+    roots = np.sort(T - rigid.switch_times)
+    signs = np.sign(rigid.levels[::-1])
+    G = system.input_integral(np.append(roots, T))
+    jump = 2.0 * u_max * signs[:-1]
+    xT = system.expm_x(T, x0) + u_max * signs[-1] * G[-1] + jump @ G[:-1]
+    return bool(np.max(np.abs(xT) / state_scale(system, x0, u_max, T)) <= 1e-13)
+
+
+def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low=None) -> BangBangProfile:
+    um = problem.u_max
+    switch_times = np.clip(np.sort(T - roots_tau), 0.0, T)
+    levels = um * signs_tau[::-1]
+    u = PiecewiseConstant.from_switches(switch_times, levels, T)
+    x0s = problem.shifted_initial()
+    states = simulate((system.A(), system.B()), x0s, u)
+    xT = states[-1]
+    scale = state_scale(system, x0s, um, T) if T > 0.0 else np.ones(xT.size)
+    err = float(np.max(np.abs(xT))) if xT.size else 0.0
+    rel = float(np.max(np.abs(xT) / scale)) if xT.size else 0.0
+    if T > 0.0:
+        cert = certify(system, nu, T, um, switch_times, levels, states, lower_bound=T_low)
+    else:
+        cert = Certificate(True, np.zeros(system.n), np.zeros(system.n), 0.0, 0, 0, True, 1.0, 0.0, "already at rest")
+    final_abs = _absolute_final(problem, u)
+    profile = BangBangProfile(
+        problem=problem,
+        switch_times=switch_times,
+        levels=levels,
+        duration=float(T),
+        final_state=final_abs,
+        final_state_error=err,
+        final_state_error_relative=rel,
+        certificate=cert,
+        solve_time_s=time.perf_counter() - t0,
+        iterations=evaluations,
+    )
+    if not rel <= FINAL_STATE_RTOL:
+        raise SolverError(
+            f"time-optimal planner missed the target: relative final-state error {rel:.3e} "
+            f"(tolerance {FINAL_STATE_RTOL:.0e}); nothing is returned"
+        )
+    return profile
+
+
+def _absolute_final(problem: MoveProblem, u: PiecewiseConstant) -> np.ndarray:
+    """Final full state in absolute coordinates, by exact simulation."""
+    return simulate(problem.model, problem.x0, u, times=[u.duration])[0]

@@ -1,0 +1,193 @@
+"""Newton on switch times for a fixed switch structure, with structure correction.
+
+Given a guess of the switch structure (number of switches, first level),
+the final-state conditions are smooth functions of the switch times and the
+duration, and Pontryagin's condition says the switching function vanishes
+at each switch: one square system in ``(tau_1..tau_L, nu, T)`` for any ``L``,
+solved by Newton's method with closed-form derivatives.  If the converged
+co-state's switching function changes sign elsewhere too, the structure was
+wrong; its zeros become the new structure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..tolerances import GAP_RTOL, POLISH_TOL
+from .reachable_set import Shooting
+from .switching import find_roots, root_tolerance, sample_grid
+
+#: Switch-structure corrections tried before giving up.
+MAX_STRUCTURE_UPDATES = 5
+#: Up to this many switches the Newton system is solved whole (LU with
+#: pivoting: robust when a cluster makes S' tiny); beyond, by elimination.
+DENSE_UP_TO = 200
+
+
+def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
+    """Newton on switch times, co-state and duration together, for a fixed switch structure.
+
+    Unknowns ``(tau_1..tau_L, nu, T)``; equations: final state zero (n),
+    switching function zero at each switch (L), one normalisation of ``nu``.
+    Square for any ``L``; all derivatives in closed form, no root finding.
+
+    Returns ``(ok, roots, nuh, T, residual)``; ``ok`` is False if the
+    structure broke (switches crossed or left ``(0, T)``) or Newton stalled.
+    """
+    sys, s, um = sh.sys, sh.s, sh.u_max
+    L, n = roots.size, s.size
+    signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+    jump = 2.0 * um * signs[:-1]  # (s_{j-1} - s_j) u_max
+    nuh = nuh / np.linalg.norm(nuh)
+    anchor = nuh.copy()
+
+    def residual(tau, nuh, T):
+        G = sys.input_integral(np.append(tau, T))
+        eAx = sys.expm_x(T, sh.x0)
+        F = (eAx + um * signs[-1] * G[-1] + jump @ G[:-1]) / s
+        g = sys.expm_B(tau) / s if L else np.zeros((0, n))
+        S = g @ nuh
+        return np.concatenate([F, S * gscale, [anchor @ nuh - 1.0]]), g, eAx
+
+    gscale = 1.0
+    tau = roots.copy()
+    r, g, eAx = residual(tau, nuh, T)
+    if L:
+        gscale = 1.0 / max(float(np.max(np.linalg.norm(g, axis=1))), 1e-300)
+        r, g, eAx = residual(tau, nuh, T)
+    rn = float(np.max(np.abs(r)))
+    for _ in range(max_iter):
+        if rn <= 16.0 * np.finfo(float).eps:
+            break
+        fT = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
+        dS = sys.switching(nuh / s, tau, derivative=True)[1] if L else np.zeros(0)
+        step = _newton_step(g * jump[:, None], fT, dS * gscale, g * gscale, anchor, r, n, L)
+        if np.max(np.abs(np.append(step[:L], step[-1]))) <= 4.0 * np.finfo(float).eps * T:
+            break  # converged: the step is below rounding of the times
+        t = 1.0
+        # converged to within POLISH_TOL: one more full step if it helps, no line search
+        for _ in range(12 if rn > POLISH_TOL else 1):
+            tau_c = tau + t * step[:L]
+            T_c = T + t * step[-1]
+            nu_c = nuh + t * step[L : L + n]
+            if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
+                r_c, g_c, eAx_c = residual(tau_c, nu_c, T_c)
+                rn_c = float(np.max(np.abs(r_c)))
+                if rn_c < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        tau, nuh, T, r, g, eAx, rn = tau_c, nu_c, T_c, r_c, g_c, eAx_c, rn_c
+    if L:  # nu and -nu both vanish at the switches: take the one whose signs match
+        first = 0.5 * tau[0]
+        if np.sign(sys.switching(nuh / s, np.array([first]))[0]) != sign0:
+            nuh = -nuh
+    return rn <= POLISH_TOL, tau, nuh, T, rn
+
+
+def _newton_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
+    """Solve the arrow-shaped Newton system of :func:`refine_switches`.
+
+    Unknowns ``(dtau (L), dnu (n), dT)``; rows: final state ``Gj^T dtau + fT dT``
+    (n), switch conditions ``D dtau + Gs dnu`` (L, ``D`` diagonal), and the
+    normalisation ``anchor . dnu``.  Eliminating ``dtau`` leaves an
+    ``(n+1) x (n+1)`` system, so the cost is ``O(L n^2)``: optima with
+    thousands of switches (a weak actuator killing a large vibration) stay cheap.
+    """
+    rF, rS, ra = r[:n], r[n : n + L], r[-1]
+    if 0 < L <= DENSE_UP_TO:
+        return _dense_step(Gj, fT, D, Gs, anchor, r, n, L)
+    scale = float(np.max(np.abs(D))) if L else 1.0
+    if L == 0 or np.min(np.abs(D)) > 1e-12 * scale:
+        Dinv = 1.0 / D if L else np.zeros(0)
+        A = Gj.T  # (n, L)
+        M = -(A * Dinv) @ Gs if L else np.zeros((n, n))
+        K = np.zeros((n + 1, n + 1))
+        K[:n, :n] = M
+        K[:n, n] = fT
+        K[n, :n] = anchor
+        rhs = np.concatenate([-rF + (A @ (Dinv * rS) if L else 0.0), [-ra]])
+        try:
+            sol = np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:
+            sol, *_ = np.linalg.lstsq(K, rhs, rcond=None)
+        dnu, dT = sol[:n], sol[n]
+        dtau = Dinv * (-rS - Gs @ dnu) if L else np.zeros(0)
+        return np.concatenate([dtau, dnu, [dT]])
+    if L > 2000:
+        return np.zeros(L + n + 1)  # a tangency among thousands of switches: give up
+    return _dense_step(Gj, fT, D, Gs, anchor, r, n, L)
+
+
+def _dense_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
+    """The same Newton system solved whole (pivoting copes with clustered switches, S' ~ 0)."""
+    J = np.zeros((n + L + 1, L + n + 1))
+    J[:n, :L] = Gj.T
+    J[:n, -1] = fT
+    J[n : n + L, :L] = np.diag(D)
+    J[n : n + L, L : L + n] = Gs
+    J[-1, L : L + n] = anchor
+    try:
+        return np.linalg.solve(J, -r)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(J, -r, rcond=None)[0]
+
+
+def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0):
+    """Switch-time Newton from the switch structure of ``nuh`` at ``T``, with structure updates.
+
+    ``roots``/``sign0``: the structure if already known for ``nuh`` at ``T``.
+    ``T_low``: a proved lower bound on the optimal time.
+    Returns ``(nuh, T, roots, signs, residual)`` of a converged extremal (its
+    switching function changes sign exactly at its switches), or None.
+    """
+    if roots is None:
+        roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, sample_grid(sh.sys, T))
+    nuh_r, T_r = nuh, T
+    for _ in range(MAX_STRUCTURE_UPDATES):
+        ok, roots_r, nuh_r, T_r, r = refine_switches(sh, roots, sign0, nuh_r, T_r)
+        if not ok:
+            return None
+        # an extremal switches exactly where S changes sign; if S changes sign
+        # elsewhere too, the structure was wrong: adopt S's zeros and refine again
+        iso_roots, iso_sign0 = find_roots(sh.sys, nuh_r / sh.s, T_r, sample_grid(sh.sys, T_r))
+        if (
+            iso_roots.size == roots_r.size
+            and iso_sign0 == sign0
+            and np.all(np.abs(iso_roots - roots_r) <= root_tolerance(sh.sys, nuh_r / sh.s, T_r, roots_r))
+        ) or T_r - T_low <= GAP_RTOL * T_r:
+            # (or within rounding of a proved lower bound: optimal whatever the
+            # sign test says, e.g. in a cluster of switches below rounding)
+            signs = sign0 * (1.0 - 2.0 * (np.arange(roots_r.size + 1) % 2))
+            return nuh_r, T_r, roots_r, signs, r
+        roots, sign0 = updated_structure(roots_r, sign0, iso_roots, iso_sign0)
+    return None
+
+
+def updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float):
+    """The switch structure to try after a converged but wrong one.
+
+    New sign changes of ``S`` come in pairs (a dip through zero): keep the
+    converged switches and insert each new pair as a *narrow* blip at its
+    middle (a tenth of its width), so that the profile, and with it the
+    final state, barely changes and Newton starts close.  Otherwise (a pair
+    vanished, or no clean pairing) take the zeros as they are.
+    """
+    if zsign0 != sign0 or zeros.size <= roots.size or (zeros.size - roots.size) % 2:
+        return zeros, zsign0
+    k = np.clip(np.searchsorted(roots, zeros), 1, max(roots.size, 1)) - 1
+    near = np.zeros(zeros.size, dtype=bool)
+    if roots.size:
+        d = np.minimum(np.abs(zeros - roots[k]), np.abs(zeros - roots[np.minimum(k + 1, roots.size - 1)]))
+        gaps = np.diff(np.concatenate([[0.0], roots]))
+        near = d <= 1e-3 * max(float(np.min(gaps[gaps > 0.0], initial=1.0)), 1e-12)
+    new = zeros[~near]
+    if new.size != zeros.size - roots.size:
+        return zeros, zsign0
+    idx = np.flatnonzero(~near)
+    if np.any(np.diff(idx)[::2] != 1):  # new zeros are not adjacent pairs
+        return zeros, zsign0
+    a, b = new[::2], new[1::2]
+    mid, half = 0.5 * (a + b), 0.05 * (b - a)
+    return np.sort(np.concatenate([roots, mid - half, mid + half])), sign0
