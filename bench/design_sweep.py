@@ -70,13 +70,19 @@ def cases(n: int) -> dict[str, tuple[DesignProblem, list[tuple[float, ...]]]]:
     one("chain3_spring", "chain", {"masses": [1.0, 1.0, 1.0], "springs": [1.0, 1.0]}, "springs[1]", 0.5, 4.0, 1.0, cfg)
     crane = {"cart_mass": 20.0, "payload_mass": 5.0, "cable_length": 2.0, "zeta": 0.005}
     pb = DesignProblem(
-        "crane", crane,
+        "crane",
+        crane,
         (DesignParameter("cable_length", 0.5, 3.0), DesignParameter("payload_mass", 2.0, 8.0)),
-        (Task(2.0),), crane_cfg,
+        (Task(2.0),),
+        crane_cfg,
     )
     nx = max(2, round(np.sqrt(n / 2.0)))
     ny = max(2, n // nx)
-    pts = [(pb.parameters[0].from_unit(a), pb.parameters[1].from_unit(b)) for a in np.linspace(0, 1, nx) for b in np.linspace(0, 1, ny)]
+    pts = [
+        (pb.parameters[0].from_unit(a), pb.parameters[1].from_unit(b))
+        for a in np.linspace(0, 1, nx)
+        for b in np.linspace(0, 1, ny)
+    ]
     out[f"crane_{nx}x{ny}"] = (pb, pts)
     return out
 
@@ -86,9 +92,13 @@ def main() -> int:
     if ARGS.cases:
         todo = {k: v for k, v in todo.items() if any(k.startswith(c) for c in ARGS.cases)}
     blas = os.environ.get("OPENBLAS_NUM_THREADS", "default")
-    print(f"# design sweep: {ARGS.points} points/case, workers={ARGS.workers}, OpenBLAS threads={blas}, "
-          f"cpus={os.cpu_count()}, load avg={os.getloadavg()[0]:.2f}")
-    print("| case | points | certified | failed | wall (s) | CPU (s) | per point wall mean / median / p95 / max (ms) | repeat (cached, s) |")
+    print(
+        f"# design sweep: {ARGS.points} points/case, workers={ARGS.workers}, OpenBLAS threads={blas}, "
+        f"cpus={os.cpu_count()}, load avg={os.getloadavg()[0]:.2f}"
+    )
+    print(
+        "| case | points | certified | failed | wall (s) | CPU (s) | per point wall mean / median / p95 / max (ms) | repeat (cached, s) |"
+    )
     print("| --- | ---: | ---: | ---: | ---: | ---: | --- | ---: |")
     for name, (pb, pts) in todo.items():
         f = DesignObjective(pb)
@@ -103,8 +113,10 @@ def main() -> int:
         again = time.perf_counter() - t1
         lat = np.array([e.solve_time_s for e in evs]) * 1e3
         ok = sum(1 for e in evs if e.feasible and e.certified)
-        print(f"| {name} | {len(evs)} | {ok} | {len(evs) - ok} | {wall:.2f} | {cpu:.2f} | "
-              f"{lat.mean():.1f} / {np.median(lat):.1f} / {np.percentile(lat, 95):.1f} / {lat.max():.1f} | {again:.4f} |")
+        print(
+            f"| {name} | {len(evs)} | {ok} | {len(evs) - ok} | {wall:.2f} | {cpu:.2f} | "
+            f"{lat.mean():.1f} / {np.median(lat):.1f} / {np.percentile(lat, 95):.1f} / {lat.max():.1f} | {again:.4f} |"
+        )
         for e in evs:
             if not (e.feasible and e.certified):
                 print(f"|   failed at {dict(zip(pb.names, e.values))}: {e.status[:100]} | | | | | | | |")

@@ -77,8 +77,10 @@ def main() -> None:
     print(f"Wie-Bernstein, goal {ARGS.goal} m, u_max 1 N, rate {rate:g} Hz")
     to, t_to = timed(plan_time_optimal, problem)
     z, t_z = timed(plan_time_optimal_zoh, problem, rate, to)
-    print(f"\n1. reference: T* = {to.duration:.6f} s ({t_to * 1e3:.0f} ms), ZOH {z.samples} samples "
-          f"({z.duration:.3f} s, {t_z * 1e3:.0f} ms, fewest proved: {z.minimal})")
+    print(
+        f"\n1. reference: T* = {to.duration:.6f} s ({t_to * 1e3:.0f} ms), ZOH {z.samples} samples "
+        f"({z.duration:.3f} s, {t_z * 1e3:.0f} ms, fewest proved: {z.minimal})"
+    )
 
     T = ARGS.fuel_factor * to.duration
     cont, t_c = timed(plan_min_fuel, problem, T, to)
@@ -86,15 +88,32 @@ def main() -> None:
     full, t_f = timed(plan_min_fuel_zoh, problem, rate, T, to)
     curve, t_cv = timed(fuel_time_curve, problem, 2.0 * to.duration, 9, None, to)
     w = [34, 14, 14, 12, 10]
-    print(f"\n2. minimum fuel, move time {T:.4f} s = {ARGS.fuel_factor} T* (time-optimal fuel u_max T* = {to.duration:.4f} N s)")
+    print(
+        f"\n2. minimum fuel, move time {T:.4f} s = {ARGS.fuel_factor} T* (time-optimal fuel u_max T* = {to.duration:.4f} N s)"
+    )
     print(row(["planner", "fuel (N s)", "gap (N s)", "LP vars", "time (ms)"], w))
-    print(row(["continuous bang-off-bang", f"{cont.fuel:.6f}", f"{cont.fuel - cont.fuel_lower_bound:.1e}", "-", f"{t_c * 1e3:.0f}"], w))
+    print(
+        row(
+            [
+                "continuous bang-off-bang",
+                f"{cont.fuel:.6f}",
+                f"{cont.fuel - cont.fuel_lower_bound:.1e}",
+                "-",
+                f"{t_c * 1e3:.0f}",
+            ],
+            w,
+        )
+    )
     for name, s, t in (("sampled LP, windows from co-state", win, t_w), ("sampled LP, all samples free", full, t_f)):
         gap = s.extra["fuel"] - s.extra["fuel_lower_bound"]
         print(row([name, f"{s.extra['fuel']:.6f}", f"{gap:.1e}", 2 * s.extra["lp_free_samples"], f"{t * 1e3:.0f}"], w))
-    print(f"fuel/time curve, 9 points T*..2T*: {t_cv * 1e3:.0f} ms; fuel = "
-          + ", ".join(f"{f:.3f}" for f in curve.fuel) + " N s at T = "
-          + ", ".join(f"{x:.2f}" for x in curve.move_times) + " s")
+    print(
+        f"fuel/time curve, 9 points T*..2T*: {t_cv * 1e3:.0f} ms; fuel = "
+        + ", ".join(f"{f:.3f}" for f in curve.fuel)
+        + " N s at T = "
+        + ", ".join(f"{x:.2f}" for x in curve.move_times)
+        + " s"
+    )
 
     if ARGS.skip_limits:
         return
@@ -112,8 +131,22 @@ def main() -> None:
     ]
     for name, lim in cases:
         r, t = timed(plan_limited_zoh, problem, rate, lim, z)
-        print(row([name, r.sampled.samples, f"{r.added_time_s:.3f}", "proved" if r.minimal else f">={r.lower_bound_samples}",
-                   r.lp_solves, r.cuts, f"{t:.1f}", r.extra["lower_bound_proof"]], w), flush=True)
+        print(
+            row(
+                [
+                    name,
+                    r.sampled.samples,
+                    f"{r.added_time_s:.3f}",
+                    "proved" if r.minimal else f">={r.lower_bound_samples}",
+                    r.lp_solves,
+                    r.cuts,
+                    f"{t:.1f}",
+                    r.extra["lower_bound_proof"],
+                ],
+                w,
+            ),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

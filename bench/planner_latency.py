@@ -61,9 +61,7 @@ RATE = 1000.0  # Hz
 
 def beam(n_modes: int):
     """A lumped flexible link: n+1 masses of 0.5 kg, 400 N/m springs, 0.4 N s/m dampers, force on mass 0."""
-    return chain(
-        [0.5] * (n_modes + 1), [400.0] * n_modes, [0.4] * n_modes, force_on=0
-    ).model
+    return chain([0.5] * (n_modes + 1), [400.0] * n_modes, [0.4] * n_modes, force_on=0).model
 
 
 def move_for(model, rigid_time: float) -> float:
@@ -84,9 +82,7 @@ def relative_final_error(problem, profile) -> float:
     return float(np.max(np.abs(xT - target) / scale))
 
 
-def proved_delta(
-    problem, profile, deltas=(1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)
-) -> float:
+def proved_delta(problem, profile, deltas=(1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)) -> float:
     """Smallest ``delta`` such that the certificate's co-state proves ``(1 - delta) T*`` infeasible.
 
     Weak duality: ``nu^T (-e^{A T'} x0) > u_max int_0^T' |nu^T e^{A tau} B| dtau``
@@ -108,9 +104,7 @@ def proved_delta(
         Tp = (1.0 - d) * T
         cuts = np.concatenate([[0.0], tau_sw[tau_sw < Tp], [Tp]])
         gam = [expm(aug * t)[:n, n] for t in cuts]
-        integral = U_MAX * sum(
-            abs(nu @ (g1 - g0)) for g0, g1 in itertools.pairwise(gam)
-        )
+        integral = U_MAX * sum(abs(nu @ (g1 - g0)) for g0, g1 in itertools.pairwise(gam))
         gap = float(nu @ (-expm(A * Tp) @ x0)) - integral
         if gap > 0.0:
             return d
@@ -186,9 +180,7 @@ def casadi_direct(model, gamma: float, N: int) -> dict:
     for uk in u_guess:
         xs.append(E[:n, :n] @ xs[-1] + E[:n, n] * uk)
     X_guess = np.array(xs).T
-    scale = np.maximum(
-        np.max(np.abs(X_guess), axis=1), 1e-6 * abs(gamma)
-    )  # state scaling
+    scale = np.maximum(np.max(np.abs(X_guess), axis=1), 1e-6 * abs(gamma))  # state scaling
 
     opti = ca.Opti()
     T = opti.variable()
@@ -302,23 +294,15 @@ def main() -> None:
             err = relative_final_error(problem, prof)
             delta = proved_delta(problem, prof) if prof.certified else math.inf
             reps_zoh = max(3, args.repeats // 4)
-            t_zoh, sp = timed(
-                lambda pr=problem: plan_time_optimal_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh
-            )
+            t_zoh, sp = timed(lambda pr=problem: plan_time_optimal_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh)
             X = _simulation.simulate_samples(model, problem.x0, sp.commands, sp.dt)
             dev = X - model.rest_state(gamma)
-            scale = np.where(
-                np.max(np.abs(dev), axis=0) > 0, np.max(np.abs(dev), axis=0), 1.0
-            )
+            scale = np.where(np.max(np.abs(dev), axis=0) > 0, np.max(np.abs(dev), axis=0), 1.0)
             zoh_err = float(np.max(np.abs(dev[-1]) / scale))
             assert np.max(np.abs(sp.commands)) <= U_MAX
             pooled.setdefault(n, []).extend(t_cont)
             pooled_zoh.setdefault(n, []).extend(t_zoh)
-            aims["cont_max_rel_err"] = (
-                max(aims["cont_max_rel_err"], err)
-                if n <= 3
-                else aims["cont_max_rel_err"]
-            )
+            aims["cont_max_rel_err"] = max(aims["cont_max_rel_err"], err) if n <= 3 else aims["cont_max_rel_err"]
             if n <= 3:
                 aims["worst_delta"] = max(aims["worst_delta"], delta)
             if tr == 5.0:

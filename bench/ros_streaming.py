@@ -51,7 +51,9 @@ def _args() -> argparse.Namespace:
     p.add_argument("--rate", type=float, default=1000.0, help="command rate (Hz)")
     p.add_argument("--goal", type=float, default=0.5, help="move distance (m); moves alternate +goal / back to 0")
     p.add_argument("--moves", type=int, default=5, help="moves per configuration")
-    p.add_argument("--priorities", type=int, nargs="+", default=[0, 50], help="stream_priority values to run (0: normal)")
+    p.add_argument(
+        "--priorities", type=int, nargs="+", default=[0, 50], help="stream_priority values to run (0: normal)"
+    )
     p.add_argument("-p", dest="extra", action="append", default=[], help="extra planner parameter NAME:=VALUE")
     return p.parse_args()
 
@@ -66,8 +68,23 @@ def run_config(args, priority: int) -> dict:
     from flexmotion_ros.nodes.planner_node import COMMAND_QOS, DIAGNOSTIC_NAME
 
     ns = f"/bench_{os.getpid()}_{priority}"
-    cmd = [sys.executable, "-m", "flexmotion_ros.nodes.planner_node", "--ros-args", "-r", f"__ns:={ns}", "--params-file", args.config,
-           "-p", f"rate_hz:={args.rate!r}", "-p", "publish_hold_when_idle:=false", *[a for x in args.extra for a in ("-p", x)], "-p", f"stream_priority:={priority}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "flexmotion_ros.nodes.planner_node",
+        "--ros-args",
+        "-r",
+        f"__ns:={ns}",
+        "--params-file",
+        args.config,
+        "-p",
+        f"rate_hz:={args.rate!r}",
+        "-p",
+        "publish_hold_when_idle:=false",
+        *[a for x in args.extra for a in ("-p", x)],
+        "-p",
+        f"stream_priority:={priority}",
+    ]
     log = open(f"/tmp/bench_ros_streaming_planner_{priority}.log", "w")  # noqa: SIM115 -- the child's log, closed in finally
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
     node = rclpy.create_node("bench", namespace=ns)
@@ -103,7 +120,13 @@ def run_config(args, priority: int) -> dict:
 
     rows = []
     try:
-        wait(lambda: goal_pub.get_subscription_count() >= 1 and any(int(d.get("command_subscribers", 0)) >= 1 for d in diags), 30.0, "discovery")
+        wait(
+            lambda: (
+                goal_pub.get_subscription_count() >= 1 and any(int(d.get("command_subscribers", 0)) >= 1 for d in diags)
+            ),
+            30.0,
+            "discovery",
+        )
         time.sleep(0.5)
         target = 0.0
         for i in range(args.moves):
@@ -114,8 +137,14 @@ def run_config(args, priority: int) -> dict:
             goal_pub.publish(Float64(data=target))
             wait(lambda n0=n0: len(recv) > n0, 30.0, "first command")
             t_first = recv[n0]
-            wait(lambda d0=d0, target=target: any(d["message"] == "idle" and "last_plan.stream_samples" in d
-                                                  and d.get("target") == f"{target:.9g}" for d in diags[d0:]), 60.0, "end of move")
+            wait(
+                lambda d0=d0, target=target: any(
+                    d["message"] == "idle" and "last_plan.stream_samples" in d and d.get("target") == f"{target:.9g}"
+                    for d in diags[d0:]
+                ),
+                60.0,
+                "end of move",
+            )
             time.sleep(0.2)
             with lock:
                 times = np.array(recv[n0:])
@@ -157,11 +186,15 @@ def main() -> None:
     finally:
         rclpy.try_shutdown()
     load = os.getloadavg()
-    print(f"flexmotion_planner streaming, {Path(args.config).name}, {args.rate:g} Hz (nominal period {1e3 / args.rate:.3f} ms), "
-          f"{args.moves} moves of {args.goal:g} per row; load average {load[0]:.1f} on {os.cpu_count()} CPUs")
+    print(
+        f"flexmotion_planner streaming, {Path(args.config).name}, {args.rate:g} Hz (nominal period {1e3 / args.rate:.3f} ms), "
+        f"{args.moves} moves of {args.goal:g} per row; load average {load[0]:.1f} on {os.cpu_count()} CPUs"
+    )
     print()
-    hdr = (f"{'stream thread':<22}{'goal->1st cmd ms':>18}{'planning ms':>13}{'samples':>9}"
-           f"{'send period ms (med/p99/max)':>31}{'recv period ms (med/p99/max)':>31}{'late max ms':>13}{'lost':>6}")
+    hdr = (
+        f"{'stream thread':<22}{'goal->1st cmd ms':>18}{'planning ms':>13}{'samples':>9}"
+        f"{'send period ms (med/p99/max)':>31}{'recv period ms (med/p99/max)':>31}{'late max ms':>13}{'lost':>6}"
+    )
     print(hdr)
     print("-" * len(hdr))
     for res in results:
@@ -170,8 +203,16 @@ def main() -> None:
         plan = np.array([r["plan_ms"] for r in rows])
         recv = np.concatenate([r["recv_periods_ms"] for r in rows])
         lost = sum(r["samples"] + 1 - r["received"] for r in rows)
-        name = "normal" if res["priority"] == 0 else f"SCHED_FIFO {res['priority']}" + (" (refused)" if res["refused"] else "")
-        send = (np.median([r["send_median_ms"] for r in rows]), max(r["send_p99_ms"] for r in rows), max(r["send_max_ms"] for r in rows))
+        name = (
+            "normal"
+            if res["priority"] == 0
+            else f"SCHED_FIFO {res['priority']}" + (" (refused)" if res["refused"] else "")
+        )
+        send = (
+            np.median([r["send_median_ms"] for r in rows]),
+            max(r["send_p99_ms"] for r in rows),
+            max(r["send_max_ms"] for r in rows),
+        )
         print(
             f"{name:<22}{np.median(lat):>8.1f} (max {lat.max():5.1f}){np.median(plan):>11.1f}  {int(np.median([r['samples'] for r in rows])):>8}"
             f"{send[0]:>13.3f} /{send[1]:>6.3f} /{send[2]:>7.3f}"

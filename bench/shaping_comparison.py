@@ -118,9 +118,17 @@ def evaluate(move: Move, model, pb, T_star, err):
     rigid_err = abs(x[0] - pb.target) + abs(x[1])
     band = [resid(r)[0] for r in np.linspace(1 - err, 1 + err, 21)]
     return {
-        "method": move.name, "T": move.duration, "added": move.duration - T_star, "peak": move.peak(model.b0),
-        "nominal": nominal, "lo": resid(1 - err)[0], "hi": resid(1 + err)[0], "worst": max(band),
-        "rigid_err": rigid_err, "plan_ms": 1e3 * move.plan_time, "note": move.note,
+        "method": move.name,
+        "T": move.duration,
+        "added": move.duration - T_star,
+        "peak": move.peak(model.b0),
+        "nominal": nominal,
+        "lo": resid(1 - err)[0],
+        "hi": resid(1 + err)[0],
+        "worst": max(band),
+        "rigid_err": rigid_err,
+        "plan_ms": 1e3 * move.plan_time,
+        "note": move.note,
     }
 
 
@@ -172,23 +180,39 @@ def run_case(title, cfg, gamma, orders, err):
     rows = [evaluate(m, model, pb, t_star, err) for m in moves]
     print(f"\n{title}: goal {gamma:g}, u_max {cfg.u_max:g}, omega {', '.join(f'{w:.4g}' for w in model.omega)} rad/s")
     e = 100 * err
-    print(f"{'method':32s} {'T (s)':>9s} {'added':>8s} {'peak|u|':>8s} {'resid %':>9s} "
-          f"{f'-{e:g}%':>8s} {f'+{e:g}%':>8s} {'worst':>8s} {'rigid err':>9s} {'plan ms':>8s}  note")
+    print(
+        f"{'method':32s} {'T (s)':>9s} {'added':>8s} {'peak|u|':>8s} {'resid %':>9s} "
+        f"{f'-{e:g}%':>8s} {f'+{e:g}%':>8s} {'worst':>8s} {'rigid err':>9s} {'plan ms':>8s}  note"
+    )
     for r in rows:
-        print(f"{r['method']:32s} {r['T']:9.5f} {r['added']:8.4f} {r['peak']:8.4g} {r['nominal']:9.2e} "
-              f"{r['lo']:8.3f} {r['hi']:8.3f} {r['worst']:8.3f} {r['rigid_err']:9.1e} {r['plan_ms']:8.1f}  {r['note']}")
+        print(
+            f"{r['method']:32s} {r['T']:9.5f} {r['added']:8.4f} {r['peak']:8.4g} {r['nominal']:9.2e} "
+            f"{r['lo']:8.3f} {r['hi']:8.3f} {r['worst']:8.3f} {r['rigid_err']:9.1e} {r['plan_ms']:8.1f}  {r['note']}"
+        )
     return rows
 
 
 def main() -> None:
     here = os.path.join(os.path.dirname(__file__), "..", "config")
-    print("residual vibration: % of a step of u_max, worst mode, exact simulation; "
-          f"+/-{100 * ARGS.error:g}%: every modal frequency scaled; worst: 21 ratios in the band")
+    print(
+        "residual vibration: % of a step of u_max, worst mode, exact simulation; "
+        f"+/-{100 * ARGS.error:g}%: every modal frequency scaled; worst: 21 ratios in the band"
+    )
     t0 = time.perf_counter()
-    run_case("Wie-Bernstein benchmark", load_config(os.path.join(here, "wie_bernstein.yaml")), ARGS.goals[0],
-             ARGS.orders, ARGS.error)
-    run_case("3-mode flexible beam", load_config(os.path.join(here, "flexible_beam_3mode.yaml")), ARGS.goals[1],
-             ARGS.orders, ARGS.error)
+    run_case(
+        "Wie-Bernstein benchmark",
+        load_config(os.path.join(here, "wie_bernstein.yaml")),
+        ARGS.goals[0],
+        ARGS.orders,
+        ARGS.error,
+    )
+    run_case(
+        "3-mode flexible beam",
+        load_config(os.path.join(here, "flexible_beam_3mode.yaml")),
+        ARGS.goals[1],
+        ARGS.orders,
+        ARGS.error,
+    )
     print(f"\ntotal {time.perf_counter() - t0:.1f} s")
 
 

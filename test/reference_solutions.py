@@ -39,9 +39,7 @@ def safe_note(text: str) -> None:
 
 
 # ---------------------------------------------------- independent rigid time
-def _rigid_phase(
-    b0: float, c: float, v0: float, u: float, t: float
-) -> tuple[float, float]:
+def _rigid_phase(b0: float, c: float, v0: float, u: float, t: float) -> tuple[float, float]:
     """Displacement and final velocity of ``p'' = c p' + b0 u`` over ``t`` from velocity ``v0``."""
     if c == 0.0:
         return v0 * t + 0.5 * b0 * u * t * t, v0 + b0 * u * t
@@ -71,9 +69,7 @@ def _stop_time(b0: float, c: float, v: float, u: float) -> float:
     return -math.log1p(v * c / a) / c  # = log((a/c) / (v + a/c)) / c, without cancellation
 
 
-def rigid_min_time(
-    model: ModalModel, u_max: float, p: float, v: float, fixed_position: bool
-) -> float:
+def rigid_min_time(model: ModalModel, u_max: float, p: float, v: float, fixed_position: bool) -> float:
     """Minimum time to bring the rigid body from ``(p, v)`` to rest (at 0 if ``fixed_position``).
 
     At most one switch.  For each order (``sigma u_max`` then ``-sigma u_max``) the
@@ -124,9 +120,7 @@ def closed_form_double_integrator(a: float, x: float, v: float) -> float:
 
 
 # ----------------------------------------------------------- the checks
-def move_scale(
-    problem: MoveProblem, u: PiecewiseConstant
-) -> tuple[np.ndarray, np.ndarray]:
+def move_scale(problem: MoveProblem, u: PiecewiseConstant) -> tuple[np.ndarray, np.ndarray]:
     """Our own final state (absolute) and each state's excursion from the target during the move."""
     T = u.duration
     times = np.unique(np.concatenate([u.breaks, np.linspace(0.0, T, 201)]))
@@ -140,9 +134,7 @@ def deviation_from_target(problem: MoveProblem, X: np.ndarray) -> tuple[np.ndarr
 
     Without a target (final position free) the position column is dropped.
     """
-    target = problem.model.rest_state(
-        problem.target if problem.target is not None else 0.0
-    )
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
     dev = X - target
     if problem.target is None:
         dev = dev[:, 1:]
@@ -153,9 +145,7 @@ def deviation_from_target(problem: MoveProblem, X: np.ndarray) -> tuple[np.ndarr
 def final_error_relative(problem: MoveProblem, u: PiecewiseConstant) -> float:
     _, scale = move_scale(problem, u)
     xT = final_state(problem.model, problem.x0, u)
-    target = problem.model.rest_state(
-        problem.target if problem.target is not None else 0.0
-    )
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
     dev = xT - target
     if problem.target is None:
         dev = dev[1:]
@@ -193,17 +183,11 @@ def check_switching_signs(problem: MoveProblem, profile) -> None:
     t = T - tau
     idx = np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, levels.size - 1)
     inner = breaks[1:-1]
-    dist = (
-        np.min(np.abs(t[:, None] - inner[None, :]), axis=1)
-        if inner.size
-        else np.full(m + 1, np.inf)
-    )
+    dist = np.min(np.abs(t[:, None] - inner[None, :]), axis=1) if inner.size else np.full(m + 1, np.inf)
     away = (dist > 2 * h) & (tau > 2 * h) & (tau < T - 2 * h)
     big = np.abs(S) > 1e-9 * np.max(np.abs(S))
     bad = away & big & (np.sign(S) != np.sign(levels[idx]))
-    assert not np.any(bad), (
-        f"co-state's switching function has the wrong sign at t = {t[bad][:5]}"
-    )
+    assert not np.any(bad), f"co-state's switching function has the wrong sign at t = {t[bad][:5]}"
 
 
 def lower_bound_gap(
@@ -228,9 +212,7 @@ def lower_bound_gap(
     A, B, x0 = shifted_system(problem)
     n = A.shape[0]
     um = problem.u_max
-    rate = max(
-        max(problem.model.omega, default=0.0), abs(problem.model.c)
-    )  # fastest time constant
+    rate = max(max(problem.model.omega, default=0.0), abs(problem.model.c))  # fastest time constant
     N = int(min(max(1000, math.ceil(2.0 * T_short * rate)), 40000))
     dt = T_short / N
     aug = np.zeros((n + 1, n + 1))
@@ -253,9 +235,7 @@ def lower_bound_gap(
         S = E @ B @ nu  # S at tau = m dt
         R = np.einsum("j,mjk->mk", nu, E[:N])  # nu^T e^{A m dt}
         cells = np.abs(R @ Gam)
-        for m in np.flatnonzero(
-            S[:-1] * S[1:] < 0.0
-        ):  # a zero inside the cell: split it there
+        for m in np.flatnonzero(S[:-1] * S[1:] < 0.0):  # a zero inside the cell: split it there
             r = R[m]
             s0 = brentq(
                 lambda s, r=r: r @ (expm(A * s) @ B),

@@ -70,7 +70,7 @@ def find_cycle(edges: dict[str, set[str]]) -> list[str] | None:
         stack.append(n)
         for m in sorted(edges.get(n, ())):
             if state.get(m) == 1:
-                return stack[stack.index(m):] + [m]
+                return stack[stack.index(m) :] + [m]
             if m not in state:
                 cycle = visit(m)
                 if cycle:
@@ -101,7 +101,9 @@ def package_edges(g) -> dict[str, set[str]]:
     edges: dict[str, set[str]] = {}
     for m, imps in g.items():
         a = subpackage(m)
-        if a is None or m.count(".") < 3:  # modules at the core's top (errors, config, ...) are not a layer of their own
+        if (
+            a is None or m.count(".") < 3
+        ):  # modules at the core's top (errors, config, ...) are not a layer of their own
             continue
         for t, _ in imps:
             b = subpackage(t)
@@ -111,9 +113,12 @@ def package_edges(g) -> dict[str, set[str]]:
 
 
 def private_imports(g) -> list[str]:
-    return [f"{m} imports {name} from {t}" for m, imps in g.items() for t, name in imps
-            if name is not None and name.startswith("_") and not name.startswith("__")
-            and t.startswith(PACKAGE) and t != m]
+    return [
+        f"{m} imports {name} from {t}"
+        for m, imps in g.items()
+        for t, name in imps
+        if name is not None and name.startswith("_") and not name.startswith("__") and t.startswith(PACKAGE) and t != m
+    ]
 
 
 def forbidden_core_imports(g) -> list[str]:
@@ -214,8 +219,10 @@ def test_a_cycle_is_caught(tmp_path):
 
 
 def test_a_subpackage_cycle_is_caught(tmp_path):
-    files = _fake(tmp_path, {"core/p/a.py": "from ..q.b import x\n", "core/q/b.py": "from ..p.c import y\n",
-                             "core/p/c.py": "y = 1\n"})
+    files = _fake(
+        tmp_path,
+        {"core/p/a.py": "from ..q.b import x\n", "core/q/b.py": "from ..p.c import y\n", "core/p/c.py": "y = 1\n"},
+    )
     g = graph(files)
     assert find_cycle(module_edges(g)) is None and find_cycle(package_edges(g)) is not None
 
@@ -225,8 +232,17 @@ def test_a_private_import_is_caught(tmp_path):
     assert private_imports(graph(files)) == [f"{CORE}.a imports _hidden from {CORE}.b"]
 
 
-@pytest.mark.parametrize("line", ["import rclpy\n", "from std_msgs.msg import Float64\n", "import matplotlib.pyplot\n",
-                                  "from ..nodes import runner\n", "from ..cli.main import entry\n", "import importlib\n"])
+@pytest.mark.parametrize(
+    "line",
+    [
+        "import rclpy\n",
+        "from std_msgs.msg import Float64\n",
+        "import matplotlib.pyplot\n",
+        "from ..nodes import runner\n",
+        "from ..cli.main import entry\n",
+        "import importlib\n",
+    ],
+)
 def test_a_forbidden_core_import_is_caught(tmp_path, line):
     files = _fake(tmp_path, {"core/a.py": "def f():\n    " + line})
     assert forbidden_core_imports(graph(files))

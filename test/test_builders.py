@@ -17,9 +17,7 @@ from flexmotion_ros.core import (
 )
 
 # an input with several levels and uneven intervals, to excite everything
-U = PiecewiseConstant(
-    np.array([0.0, 0.37, 1.1, 1.9, 3.05, 4.0]), np.array([1.0, -0.6, 0.25, -1.0, 0.8])
-)
+U = PiecewiseConstant(np.array([0.0, 0.37, 1.1, 1.9, 3.05, 4.0]), np.array([1.0, -0.6, 0.25, -1.0, 0.8]))
 TIMES = np.linspace(0.0, 7.0, 57)  # past the end of the input: free vibration too
 
 
@@ -72,18 +70,12 @@ def modal_trajectory(built, u, times):
 def assert_same_motion(built, M, D, K, force_on, rtol=1e-9):
     pos_ref, vel_ref = physical_trajectory(M, D, K, force_on, U, TIMES)
     pos, vel = modal_trajectory(built, U, TIMES)
-    np.testing.assert_allclose(
-        pos, pos_ref, rtol=0, atol=rtol * np.max(np.abs(pos_ref))
-    )
-    np.testing.assert_allclose(
-        vel, vel_ref, rtol=0, atol=rtol * np.max(np.abs(vel_ref))
-    )
+    np.testing.assert_allclose(pos, pos_ref, rtol=0, atol=rtol * np.max(np.abs(pos_ref)))
+    np.testing.assert_allclose(vel, vel_ref, rtol=0, atol=rtol * np.max(np.abs(vel_ref)))
 
 
 # ------------------------------------------------------------- two-mass
-@pytest.mark.parametrize(
-    "m1, m2, k, d", [(1.0, 1.0, 1.0, 0.0), (2.0, 0.5, 30.0, 0.4), (0.1, 7.0, 3.0, 0.05)]
-)
+@pytest.mark.parametrize("m1, m2, k, d", [(1.0, 1.0, 1.0, 0.0), (2.0, 0.5, 30.0, 0.4), (0.1, 7.0, 3.0, 0.05)])
 def test_two_mass_analytic(m1, m2, k, d):
     built = two_mass(m1, m2, k, d)
     m = built.model
@@ -94,9 +86,7 @@ def test_two_mass_analytic(m1, m2, k, d):
     assert m.omega[0] == pytest.approx(w, rel=1e-12)
     # the mode coordinate is the spring deflection x1 - x2: q'' = -w^2 q - d (1/m1 + 1/m2) q' + f/m1
     assert m.b[0] == pytest.approx(1 / m1, rel=1e-12)
-    assert m.zeta[0] == pytest.approx(
-        d * (1 / m1 + 1 / m2) / (2 * w), rel=1e-12, abs=1e-15
-    )
+    assert m.zeta[0] == pytest.approx(d * (1 / m1 + 1 / m2) / (2 * w), rel=1e-12, abs=1e-15)
     # x1 = p + m2/(m1+m2) q, x2 = p - m1/(m1+m2) q (p: centre of mass)
     np.testing.assert_allclose(
         built.modal_to_physical,
@@ -172,9 +162,7 @@ def test_chain_vs_physical_simulation(masses, springs, damping, force_on):
     assert built.model.b0 == pytest.approx(1 / sum(masses), rel=1e-13)
     if damping == "proportional":
         assert built.notes["damping_coupling"] < 1e-10
-        np.testing.assert_allclose(
-            built.model.zeta, 0.5 * 0.004 * np.asarray(built.model.omega), rtol=1e-10
-        )
+        np.testing.assert_allclose(built.model.zeta, 0.5 * 0.004 * np.asarray(built.model.omega), rtol=1e-10)
 
 
 def test_chain_mode_coordinate_is_the_largest_spring_deflection():
@@ -196,12 +184,8 @@ def test_chain_nonproportional_damping_reports_coupling():
 def test_chain_matches_flexible_beam_example():
     built = chain([0.5] * 4, [400.0] * 3, [0.4] * 3)
     m = built.model
-    np.testing.assert_allclose(
-        m.omega, [21.647844005847876, 40.0, 52.262518595055056], rtol=1e-12
-    )
-    np.testing.assert_allclose(
-        np.abs(m.b), [0.7071067811865475, 1.0, 0.7071067811865475], rtol=1e-12
-    )
+    np.testing.assert_allclose(m.omega, [21.647844005847876, 40.0, 52.262518595055056], rtol=1e-12)
+    np.testing.assert_allclose(np.abs(m.b), [0.7071067811865475, 1.0, 0.7071067811865475], rtol=1e-12)
 
 
 @pytest.mark.parametrize(

@@ -48,9 +48,7 @@ def assert_refused(capsys, argv, *fragments) -> str:
     out, err = capsys.readouterr()
     assert status == 2
     assert out == ""
-    assert (
-        err.startswith(ONE_LINE_PREFIX) and err.endswith("\n") and err.count("\n") == 1
-    ), err
+    assert err.startswith(ONE_LINE_PREFIX) and err.endswith("\n") and err.count("\n") == 1, err
     for f in fragments:
         assert f in err, err
     return err
@@ -62,9 +60,7 @@ def check_continuous_fields(out: dict, u_max: float) -> None:
     lv = out["levels"]
     assert isinstance(T, float) and T > 0.0
     assert len(lv) == len(sw) + 1
-    assert all(0.0 < t < T for t in sw) and all(
-        b > a for a, b in itertools.pairwise(sw)
-    )
+    assert all(0.0 < t < T for t in sw) and all(b > a for a, b in itertools.pairwise(sw))
     assert all(abs(v) == u_max for v in lv)
     assert out["certified"] is True
     assert 0.0 <= out["final_state_error"] < 1e-9
@@ -80,18 +76,14 @@ def test_plan_json_wie_bernstein(capsys):
     assert out["levels"] == [1.0, -1.0, 1.0, -1.0]
     assert "samples" not in out and "commands" not in out
     # our own simulation of the printed profile reaches rest at the goal
-    u = PiecewiseConstant.from_switches(
-        out["switch_times"], out["levels"], out["duration"]
-    )
+    u = PiecewiseConstant.from_switches(out["switch_times"], out["levels"], out["duration"])
     x = final_state(WB, WB.rest_state(), u)
     np.testing.assert_allclose(x, [1.0, 0.0, 0.0, 0.0], atol=1e-9)
 
 
 @pytest.mark.parametrize("rate", [50.0, 1000.0])
 def test_plan_json_with_rate(capsys, rate):
-    out = run_json(
-        capsys, "--config", str(WB_CONFIG), "--goal", "-0.7", "--rate", str(rate)
-    )
+    out = run_json(capsys, "--config", str(WB_CONFIG), "--goal", "-0.7", "--rate", str(rate))
     check_continuous_fields(out, 1.0)
     cmds = np.asarray(out["commands"], float)
     assert out["samples"] == cmds.size
@@ -105,15 +97,11 @@ def test_plan_json_with_rate(capsys, rate):
 def test_initial_velocity_without_goal_stops_asap(capsys):
     out = run_json(capsys, "--config", str(WB_CONFIG), "--initial-velocity", "0.8")
     check_continuous_fields(out, 1.0)
-    u = PiecewiseConstant.from_switches(
-        out["switch_times"], out["levels"], out["duration"]
-    )
+    u = PiecewiseConstant.from_switches(out["switch_times"], out["levels"], out["duration"])
     x = final_state(WB, [0.0, 0.8, 0.0, 0.0], u)
     np.testing.assert_allclose(x[1:], 0.0, atol=1e-9)  # at rest; the position is free
     assert x[0] > 0.0 and out["final_state"][0] == pytest.approx(x[0], rel=1e-9)
-    assert out["duration"] == pytest.approx(
-        plan_time_optimal(motion_to_rest(WB, 1.0, 0.8)).duration, rel=1e-12
-    )
+    assert out["duration"] == pytest.approx(plan_time_optimal(motion_to_rest(WB, 1.0, 0.8)).duration, rel=1e-12)
     # a rigid body would stop in v / (b0 u_max) = 1.6 s; the mode can only make it longer
     assert out["duration"] >= 1.6
 
@@ -129,12 +117,8 @@ def test_initial_velocity_and_goal(capsys):
         "2.0",
     )
     check_continuous_fields(out, 1.0)
-    u = PiecewiseConstant.from_switches(
-        out["switch_times"], out["levels"], out["duration"]
-    )
-    np.testing.assert_allclose(
-        final_state(WB, [0.0, -0.5, 0.0, 0.0], u), [2.0, 0, 0, 0], atol=1e-9
-    )
+    u = PiecewiseConstant.from_switches(out["switch_times"], out["levels"], out["duration"])
+    np.testing.assert_allclose(final_state(WB, [0.0, -0.5, 0.0, 0.0], u), [2.0, 0, 0, 0], atol=1e-9)
 
 
 def test_text_output(capsys):
@@ -144,21 +128,12 @@ def test_text_output(capsys):
     assert err == ""
 
 
-def test_model_two_mass_writes_a_config_that_plans_to_the_wie_bernstein_optimum(
-    tmp_path, capsys
-):
+def test_model_two_mass_writes_a_config_that_plans_to_the_wie_bernstein_optimum(tmp_path, capsys):
     path = tmp_path / "wb.yaml"
-    assert (
-        main(
-            ["model", "two-mass", "--m1", "1", "--m2", "1", "--k", "1", "-o", str(path)]
-        )
-        == 0
-    )
+    assert main(["model", "two-mass", "--m1", "1", "--m2", "1", "--k", "1", "-o", str(path)]) == 0
     capsys.readouterr()
     cfg = load_config(path)
-    assert cfg.model.b0 == pytest.approx(0.5) and cfg.model.omega[0] == pytest.approx(
-        math.sqrt(2.0)
-    )
+    assert cfg.model.b0 == pytest.approx(0.5) and cfg.model.omega[0] == pytest.approx(math.sqrt(2.0))
     assert "b0: 0.5" in path.read_text() and "u_max: 1.0" in path.read_text()
     out = run_json(capsys, "--config", str(path), "--goal", "1.0")
     assert out["duration"] == pytest.approx(4.2179, abs=5e-5)
@@ -197,9 +172,7 @@ def write_config(tmp_path, body: str) -> str:
     return str(path)
 
 
-@pytest.mark.parametrize(
-    "goal, name", [("nan", "goal"), ("inf", "goal"), ("-inf", "goal")]
-)
+@pytest.mark.parametrize("goal, name", [("nan", "goal"), ("inf", "goal"), ("-inf", "goal")])
 def test_non_finite_goal(capsys, goal, name):
     assert_refused(
         capsys,
@@ -305,9 +278,7 @@ def test_unparsable_number(capsys):
 
 def test_solver_error_is_one_line_too(capsys, monkeypatch):
     def failing(*args, **kwargs):
-        raise SolverError(
-            "time-optimal planner missed the target: relative final-state error 1e-3"
-        )
+        raise SolverError("time-optimal planner missed the target: relative final-state error 1e-3")
 
     monkeypatch.setattr("flexmotion_ros.cli.plan_cmd.plan_move", failing)
     assert_refused(
@@ -336,9 +307,7 @@ def test_installed_console_script():
     )
     assert ok.returncode == 0, ok.stderr
     out = json.loads(ok.stdout)
-    assert (
-        out["duration"] == pytest.approx(4.2179, abs=5e-5) and out["certified"] is True
-    )
+    assert out["duration"] == pytest.approx(4.2179, abs=5e-5) and out["certified"] is True
     bad = subprocess.run(
         [str(exe), "plan", "--config", str(WB_CONFIG), "--goal", "nan", "--json"],
         capture_output=True,

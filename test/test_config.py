@@ -28,9 +28,7 @@ from flexmotion_ros.core.config import (
 from flexmotion_ros.core.errors import ConfigError
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
-MODEL = ModalModel(
-    b0=0.5, c=-0.125, omega=(1.4142135623730951, 7.0), zeta=(0.0, 0.03), b=(1.0, -2.0)
-)
+MODEL = ModalModel(b0=0.5, c=-0.125, omega=(1.4142135623730951, 7.0), zeta=(0.0, 0.03), b=(1.0, -2.0))
 
 
 def write(tmp_path, text: str, name: str = "p.yaml") -> Path:
@@ -41,9 +39,7 @@ def write(tmp_path, text: str, name: str = "p.yaml") -> Path:
 
 # ---------------------------------------------------------------- round trip
 def test_write_and_load_round_trip(tmp_path):
-    cfg = PlannerConfig(
-        model=MODEL, u_max=2.0, rate_hz=500.0, position_min=-1.5, position_max=3.0
-    )
+    cfg = PlannerConfig(model=MODEL, u_max=2.0, rate_hz=500.0, position_min=-1.5, position_max=3.0)
     path = tmp_path / "cfg.yaml"
     write_config(path, cfg, header="# a header\n")
     assert path.read_text().startswith("# a header\n/**:\n  ros__parameters:\n")
@@ -104,9 +100,7 @@ def test_doubles_are_written_as_doubles(value):
 
 
 def test_specific_spellings():
-    text = dump_parameters(
-        {"u_max": 2, "rate_hz": 1000, "model.b0": 1e-20, "model.c": 0}
-    )
+    text = dump_parameters({"u_max": 2, "rate_hz": 1000, "model.b0": 1e-20, "model.c": 0})
     assert "u_max: 2.0\n" in text
     assert "rate_hz: 1000.0\n" in text
     assert re.search(r"\bb0: 1\.0e-20[,}\n]", text)
@@ -170,9 +164,7 @@ def test_fully_qualified_node_name_matches_a_plain_section(tmp_path):
 
 
 def test_slash_prefixed_node_section(tmp_path):
-    path = write(
-        tmp_path, TWO_SECTIONS.replace("flexmotion_planner:", "/flexmotion_planner:")
-    )
+    path = write(tmp_path, TWO_SECTIONS.replace("flexmotion_planner:", "/flexmotion_planner:"))
     assert load_config(path).u_max == 3.0
 
 
@@ -290,16 +282,11 @@ def test_with_changes_revalidates():
 # ------------------------------------------------------- shipped examples
 def test_shipped_examples_load_and_match_their_builders():
     wb = load_config(CONFIG_DIR / "wie_bernstein.yaml")
-    assert wb.model == ModalModel(
-        b0=0.5, omega=(math.sqrt(2.0),), zeta=(0.0,), b=(1.0,)
-    )
+    assert wb.model == ModalModel(b0=0.5, omega=(math.sqrt(2.0),), zeta=(0.0,), b=(1.0,))
     assert (wb.u_max, wb.rate_hz) == (1.0, 1000.0)
     cr = load_config(CONFIG_DIR / "crane.yaml")
     built = crane(20.0, 5.0, 2.0, 9.81, 0.005).model
-    assert (
-        cr.model.omega == pytest.approx(built.omega, rel=1e-15)
-        and cr.model.b == built.b
-    )
+    assert cr.model.omega == pytest.approx(built.omega, rel=1e-15) and cr.model.b == built.b
     assert cr.u_max == 50.0
     beam = load_config(CONFIG_DIR / "flexible_beam_3mode.yaml")
     built = chain([0.5] * 4, [400.0] * 3, [0.4] * 3).model

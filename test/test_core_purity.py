@@ -38,9 +38,7 @@ def ros_imports(source: str) -> list[str]:
     found = []
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
-            found += [
-                a.name for a in node.names if is_ros(a.name) or ".nodes" in a.name
-            ]
+            found += [a.name for a in node.names if is_ros(a.name) or ".nodes" in a.name]
         elif isinstance(node, ast.ImportFrom):
             mod = node.module or ""
             if (
@@ -57,11 +55,7 @@ def ros_imports(source: str) -> list[str]:
             name = fn.attr if isinstance(fn, ast.Attribute) else getattr(fn, "id", "")
             if name in ("import_module", "__import__") and node.args:
                 arg = node.args[0]
-                if (
-                    isinstance(arg, ast.Constant)
-                    and isinstance(arg.value, str)
-                    and is_ros(arg.value)
-                ):
+                if isinstance(arg, ast.Constant) and isinstance(arg.value, str) and is_ros(arg.value):
                     found.append(arg.value)
     return found
 
@@ -129,7 +123,5 @@ def test_importing_the_core_does_not_import_ros():
     assert res.returncode == 0, res.stderr
     data = json.loads(res.stdout)
     assert len(data["modules"]) >= 10
-    ros = [
-        m for m in data["loaded"] if is_ros(m) or m.startswith("flexmotion_ros.nodes")
-    ]
+    ros = [m for m in data["loaded"] if is_ros(m) or m.startswith("flexmotion_ros.nodes")]
     assert ros == [], f"importing the core loaded {ros}"

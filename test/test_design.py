@@ -220,7 +220,14 @@ def test_robustness_requirement_is_enforced():
         ("two_mass", None, "d", -0.1, 1.0, r"param d.*>= 0 N s/m"),
         ("two_mass", None, "kk", 1.0, 2.0, r"param kk: is not a design parameter of two_mass"),
         ("crane", {"cart_mass": 20, "payload_mass": 5, "cable_length": 2}, "zeta", 0.0, 1.0, r"param zeta.*\[0, 1\)"),
-        ("chain", {"masses": [1, 1, 1], "springs": [1, 1]}, "springs[2]", 1.0, 2.0, r"springs\[2\]: index must be in \[0, 1\]"),
+        (
+            "chain",
+            {"masses": [1, 1, 1], "springs": [1, 1]},
+            "springs[2]",
+            1.0,
+            2.0,
+            r"springs\[2\]: index must be in \[0, 1\]",
+        ),
         ("chain", {"masses": [1, 1, 1], "springs": [1, 1]}, "springs", 1.0, 2.0, r"param springs: .*springs\[i\]"),
         ("chain", {"masses": [1, 1], "springs": [1]}, "dampers[0]", 0.0, 50.0, r"non-physical model.*overdamped"),
     ],
@@ -234,10 +241,16 @@ def test_bad_bounds_refused(builder, base, name, lo, hi, match):
 def test_other_bad_design_input_refused():
     with pytest.raises(FlexmotionError, match="param k: given more than once"):
         problem({"k": (1.0, 2.0)}).__class__(
-            "two_mass", {"m1": 1, "m2": 1, "k": 1}, (DesignParameter("k", 1, 2), DesignParameter("k", 2, 3)), (Task(1.0),), CFG
+            "two_mass",
+            {"m1": 1, "m2": 1, "k": 1},
+            (DesignParameter("k", 1, 2), DesignParameter("k", 2, 3)),
+            (Task(1.0),),
+            CFG,
         )
     with pytest.raises(FlexmotionError, match="a log scale needs lower bound > 0"):
-        DesignProblem("two_mass", {"m1": 1, "m2": 1, "k": 1}, (DesignParameter("d", 0.0, 1.0, "log"),), (Task(1.0),), CFG)
+        DesignProblem(
+            "two_mass", {"m1": 1, "m2": 1, "k": 1}, (DesignParameter("d", 0.0, 1.0, "log"),), (Task(1.0),), CFG
+        )
     with pytest.raises(FlexmotionError, match="goal: must be non-zero"):
         problem({"k": (1.0, 2.0)}, goals=(0.0,))
     with pytest.raises(FlexmotionError, match=r"weight\[0\]"):
@@ -310,8 +323,27 @@ def test_cli_modal_only_config_needs_a_builder(capsys):
     assert main(["design", "--config", str(CONFIG_DIR / "wie_bernstein.yaml"), "--param", "k=1:2", "--goal", "1"]) == 2
     assert "design.builder" in capsys.readouterr().err
     # with --builder/--set it designs (and notes nothing: the file's model is the same structure)
-    argv = ["design", "--config", str(CONFIG_DIR / "wie_bernstein.yaml"), "--builder", "two_mass", "--set", "m1=1", "--set", "m2=1",
-            "--set", "k=1", "--param", "k=1:1.5", "--goal", "1", "--grid", "3", "--xtol", "0.1"]
+    argv = [
+        "design",
+        "--config",
+        str(CONFIG_DIR / "wie_bernstein.yaml"),
+        "--builder",
+        "two_mass",
+        "--set",
+        "m1=1",
+        "--set",
+        "m2=1",
+        "--set",
+        "k=1",
+        "--param",
+        "k=1:1.5",
+        "--goal",
+        "1",
+        "--grid",
+        "3",
+        "--xtol",
+        "0.1",
+    ]
     assert main(argv) == 0
     cap = capsys.readouterr()
     assert "best              k = 1.5" in cap.out and "note" not in cap.err

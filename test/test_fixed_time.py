@@ -145,8 +145,18 @@ def test_method_through_plan_move():
 
 def test_cli_refuses_an_early_arrival_with_one_line():
     out = subprocess.run(
-        [sys.executable, "-m", "flexmotion_ros.cli.main", "plan", "--config", "config/friction_example.yaml",
-         "--goal", "3.0", "--method", "fixed_time"],
+        [
+            sys.executable,
+            "-m",
+            "flexmotion_ros.cli.main",
+            "plan",
+            "--config",
+            "config/friction_example.yaml",
+            "--goal",
+            "3.0",
+            "--method",
+            "fixed_time",
+        ],
         capture_output=True,
         text=True,
         check=False,

@@ -78,6 +78,7 @@ def ivp_modal_friction(model: ModalModel, F: float, x0, u: PiecewiseConstant) ->
         t, t_end = u.breaks[k], u.breaks[k + 1]
         while t < t_end:
             if x[1] == 0.0 and abs(level) <= F:  # stuck: rigid body held, modes free
+
                 def rhs(_, z, level=level):
                     d = A @ z + B * level
                     d[:2] = 0.0
@@ -124,6 +125,7 @@ def ivp_two_mass_friction(m1, m2, k, d, F, x0, u: PiecewiseConstant) -> np.ndarr
         while t < t_end - 1e-15:
             stuck = x[1] == 0.0 and abs(applied(x, level)) <= F
             if stuck:
+
                 def rhs(_, z, level=level):
                     return [0.0, 0.0, z[3], (k * (z[0] - z[2]) - d * z[3]) / m2]
 
@@ -350,13 +352,25 @@ def test_method_through_plan_move_and_parameter_errors():
             plan_move(cfg_bad, rest_to_rest(cfg.model, cfg.u_max, 1.0))
         assert e.value.parameter == "coulomb_force" and "[0, u_max)" in str(e.value)
     with pytest.raises(FlexmotionError) as e:
-        plan_move(config_from_parameters({**base, "method": "time_optimal_friction"}), rest_to_rest(cfg.model, 1.0, 1.0))
+        plan_move(
+            config_from_parameters({**base, "method": "time_optimal_friction"}), rest_to_rest(cfg.model, 1.0, 1.0)
+        )
     assert e.value.parameter == "coulomb_force"
 
 
 def test_cli_plans_the_example_config():
     out = subprocess.run(
-        [sys.executable, "-m", "flexmotion_ros.cli.main", "plan", "--config", "config/friction_example.yaml", "--goal", "1.0", "--json"],
+        [
+            sys.executable,
+            "-m",
+            "flexmotion_ros.cli.main",
+            "plan",
+            "--config",
+            "config/friction_example.yaml",
+            "--goal",
+            "1.0",
+            "--json",
+        ],
         capture_output=True,
         text=True,
         check=False,

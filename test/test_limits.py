@@ -334,14 +334,29 @@ def test_property_random_models_and_limits(w, z, b, gamma, v_frac, q_frac, slew)
 
 # --------------------------------------------------------- method and CLI
 def params(**extra):
-    p = {"model.b0": 0.5, "model.omega": [math.sqrt(2.0)], "model.zeta": [0.0], "model.b": [1.0], "u_max": 1.0, "rate_hz": 10.0, "method": "limited"}
+    p = {
+        "model.b0": 0.5,
+        "model.omega": [math.sqrt(2.0)],
+        "model.zeta": [0.0],
+        "model.b": [1.0],
+        "u_max": 1.0,
+        "rate_hz": 10.0,
+        "method": "limited",
+    }
     p.update(extra)
     return p
 
 
 def test_method_reports_added_time_per_limit():
     config = config_from_parameters(
-        params(**{"limits.velocity_max": 0.35, "limits.deflection_max": [0.2], "limits.slew_rate": 4.0, "limits.report_each": True})
+        params(
+            **{
+                "limits.velocity_max": 0.35,
+                "limits.deflection_max": [0.2],
+                "limits.slew_rate": 4.0,
+                "limits.report_each": True,
+            }
+        )
     )
     r = plan_move(config, rest_to_rest(config.model, 1.0, 1.0))  # no rate: the config's
     assert r.sampled.dt == pytest.approx(0.1) and "config.rate_hz" in r.info["rate_source"]

@@ -132,7 +132,9 @@ def test_continuous_is_bang_off_bang_exact_and_optimal(problem):
     check_arrival(problem, p)
     assert p.fuel == pytest.approx(float(np.sum(np.diff(p.input().breaks) * np.abs(p.input().levels))), rel=1e-12)
     # weak duality, independently: the dual value by quadrature with expm bounds every input's fuel
-    d = dual_by_quadrature(problem.model, problem.shifted_initial(), T, problem.u_max, p.costate, problem.include_position)
+    d = dual_by_quadrature(
+        problem.model, problem.shifted_initial(), T, problem.u_max, p.costate, problem.include_position
+    )
     assert d == pytest.approx(p.fuel, rel=1e-6)
     # any ZOH sequence is an admissible continuous input: the sampled optimum cannot use less
     for rate in (100.0, 400.0):
@@ -174,7 +176,9 @@ def test_sampled_optimum_equals_state_space_lp(problem, K):
     K = max(K, z.samples)
     s = plan_min_fuel_zoh(problem, rate, K / rate)
     assert s.samples == K
-    ref = state_space_fuel(problem.model, problem.x0, problem.target, problem.u_max, K, 1.0 / rate, problem.target is not None)
+    ref = state_space_fuel(
+        problem.model, problem.x0, problem.target, problem.u_max, K, 1.0 / rate, problem.target is not None
+    )
     assert s.extra["fuel"] == pytest.approx(ref, rel=1e-8)
     assert s.extra["fuel"] - s.extra["fuel_lower_bound"] <= 1e-9 * s.extra["fuel"]
     states = simulate_samples(problem.model, problem.x0, s.commands, 1.0 / rate)
@@ -221,9 +225,7 @@ def test_curve_monotone_with_exact_end_points():
     assert np.all(np.diff(sampled.fuel) <= 1e-12 * sampled.fuel[0])
     K_max = math.floor(longest * rate + 1e-9)
     z = plan_time_optimal_zoh(problem, rate, to)
-    free_time = min(
-        state_space_fuel(WB, problem.x0, 1.0, 1.0, K, 1.0 / rate) for K in range(z.samples, K_max + 1, 7)
-    )
+    free_time = min(state_space_fuel(WB, problem.x0, 1.0, 1.0, K, 1.0 / rate) for K in range(z.samples, K_max + 1, 7))
     last = state_space_fuel(WB, problem.x0, 1.0, 1.0, K_max, 1.0 / rate)
     assert sampled.fuel[-1] == pytest.approx(last, rel=1e-8)
     assert last <= free_time * (1 + 1e-9)
@@ -273,7 +275,15 @@ def test_property_sampled_fuel(w, z, b, b0, gamma, factor):
 
 # --------------------------------------------------------- method and CLI
 def params(**extra):
-    p = {"model.b0": 0.5, "model.omega": [math.sqrt(2.0)], "model.zeta": [0.0], "model.b": [1.0], "u_max": 1.0, "rate_hz": 50.0, "method": "min_fuel"}
+    p = {
+        "model.b0": 0.5,
+        "model.omega": [math.sqrt(2.0)],
+        "model.zeta": [0.0],
+        "model.b": [1.0],
+        "u_max": 1.0,
+        "rate_hz": 50.0,
+        "method": "min_fuel",
+    }
     p.update(extra)
     return p
 
@@ -292,8 +302,12 @@ def test_method_defaults_and_config_rate():
 
 @pytest.mark.parametrize(
     "extra, name",
-    [({"move_time": 3.0}, "move_time"), ({"move_time": "x"}, "move_time"), ({"fuel_curve.points": 1}, "fuel_curve.points"),
-     ({"fuel_curve.longest_time": 1.0}, "fuel_curve.longest_time")],
+    [
+        ({"move_time": 3.0}, "move_time"),
+        ({"move_time": "x"}, "move_time"),
+        ({"fuel_curve.points": 1}, "fuel_curve.points"),
+        ({"fuel_curve.longest_time": 1.0}, "fuel_curve.longest_time"),
+    ],
 )
 def test_method_rejects_bad_options(extra, name):
     config = config_from_parameters(params(**extra))
@@ -312,6 +326,8 @@ def test_cli_plan_min_fuel(tmp_path, capsys):
     assert cli_main(["plan", "--config", str(cfg), "--goal", "1.0", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["method"] == "min_fuel" and out["duration"] == 5.0 and out["samples"] == 250
-    assert len(out["fuel_curve"]["fuel"]) == 3 and out["fuel_curve"]["fuel"][0] == pytest.approx(out["time_optimal_duration"])
+    assert len(out["fuel_curve"]["fuel"]) == 3 and out["fuel_curve"]["fuel"][0] == pytest.approx(
+        out["time_optimal_duration"]
+    )
     assert cli_main(["plan", "--config", str(cfg), "--goal", "1.0"]) == 0
     assert "min_fuel" in capsys.readouterr().out

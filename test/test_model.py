@@ -196,9 +196,7 @@ def test_A_eigenvalues_are_the_modal_poles():
     for w, z in zip(m.omega, m.zeta):
         wd = w * math.sqrt(1 - z * z)
         poles += [complex(-z * w, wd), complex(-z * w, -wd)]
-    np.testing.assert_allclose(
-        ev, np.sort_complex(np.array(poles, complex)), atol=1e-12
-    )
+    np.testing.assert_allclose(ev, np.sort_complex(np.array(poles, complex)), atol=1e-12)
 
 
 def test_sizes_names_rest_and_natural_distance():
@@ -206,9 +204,7 @@ def test_sizes_names_rest_and_natural_distance():
     assert (m.n_modes, m.n_states) == (2, 6)
     assert m.state_names() == ["p", "v", "mode_1", "mode_1_dot", "mode_2", "mode_2_dot"]
     np.testing.assert_array_equal(m.rest_state(2.5), [2.5, 0, 0, 0, 0, 0])
-    np.testing.assert_allclose(
-        m.omega_d, [1.5 * math.sqrt(1 - 0.02**2), 4.0 * math.sqrt(1 - 0.01)], rtol=1e-15
-    )
+    np.testing.assert_allclose(m.omega_d, [1.5 * math.sqrt(1 - 0.02**2), 4.0 * math.sqrt(1 - 0.01)], rtol=1e-15)
     assert m.natural_distance(2.0) == pytest.approx(0.5 * 2.0 / 1.5**2, rel=1e-15)
     rigid = ModalModel(b0=-2.0)
     assert (rigid.n_modes, rigid.n_states, rigid.natural_distance(3.0)) == (0, 2, 1.0)
@@ -251,6 +247,4 @@ def test_modal_form_eqs_2_6_2_7():
     np.testing.assert_allclose(M @ At, m.A() @ M, atol=1e-12)
     np.testing.assert_allclose(M @ Bt, m.B(), atol=1e-15)
     for t in (0.3, 2.0, 7.0):
-        np.testing.assert_allclose(
-            M @ expm(At * t) @ np.linalg.inv(M), expm(m.A() * t), atol=1e-11
-        )
+        np.testing.assert_allclose(M @ expm(At * t) @ np.linalg.inv(M), expm(m.A() * t), atol=1e-11)

@@ -18,7 +18,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 COLCON = Path(sys.executable).with_name("colcon")
-IGNORE = shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis", "*.png")
+IGNORE = shutil.ignore_patterns(
+    ".git", ".venv", "build", "install", "log", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis", "*.png"
+)
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +61,9 @@ def test_package_index_and_configs_installed(install):
 def test_installed_nodes_run_and_refuse_a_bad_parameter_file(install, tmp_path, exe):
     """The installed scripts start the real nodes: a bad file exits with status 2 and the reason."""
     bad = tmp_path / "bad.yaml"
-    bad.write_text("/**:\n  ros__parameters:\n    model:\n      b0: 0.5\n      omega: [1.0]\n      zeta: [1.5]\n      b: [1.0]\n")
+    bad.write_text(
+        "/**:\n  ros__parameters:\n    model:\n      b0: 0.5\n      omega: [1.0]\n      zeta: [1.5]\n      b: [1.0]\n"
+    )
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     proc = subprocess.run(
         [str(install / "lib" / "flexmotion_ros" / exe), "--ros-args", "--params-file", str(bad)],

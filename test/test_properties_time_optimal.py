@@ -92,9 +92,7 @@ signs = st.sampled_from([1.0, -1.0])
 #: A signed factor for one state component: 0, or a magnitude in [0.1, 1], so that the
 #: move's scale is the drawn ``size`` (1e-3 to 1e3 of the natural one).  Components far
 #: below the move's scale (1e-168 m/s, ...) are tested by explicit examples.
-units = st.one_of(
-    st.just(0.0), st.tuples(signs, st.floats(0.1, 1.0)).map(lambda t: t[0] * t[1])
-)
+units = st.one_of(st.just(0.0), st.tuples(signs, st.floats(0.1, 1.0)).map(lambda t: t[0] * t[1]))
 
 
 @st.composite
@@ -114,9 +112,7 @@ def models(
     if w and w[-1] > omega_cap:  # squeeze into (0, cap], keeping the ratios
         w = [x * omega_cap / w[-1] for x in w]
     undamped = draw(st.booleans())
-    zeta = [
-        0.0 if undamped else draw(st.floats(0.0, 0.3, allow_subnormal=False)) for _ in w
-    ]
+    zeta = [0.0 if undamped else draw(st.floats(0.0, 0.3, allow_subnormal=False)) for _ in w]
     b = [draw(signs) * draw(log_uniform(0.1, 10.0)) for _ in w]
     b0 = draw(signs) * draw(log_uniform(0.1, 10.0))
     c = 0.0
@@ -191,9 +187,7 @@ def check_continuous(problem: MoveProblem, profile) -> None:
     T = profile.duration
     sw = np.asarray(profile.switch_times, float)
     lv = np.asarray(profile.levels, float)
-    if negligible(
-        problem
-    ):  # nothing to do (e.g. a free final position and no velocity)
+    if negligible(problem):  # nothing to do (e.g. a free final position and no velocity)
         assert T == 0.0 and sw.size == 0 and profile.certified
         return
     assert math.isfinite(T) and T > 0.0
@@ -205,24 +199,14 @@ def check_continuous(problem: MoveProblem, profile) -> None:
     rel = final_error_relative(problem, profile.input())
     assert rel <= FINAL_RTOL, f"own simulation: relative final-state error {rel:.3e}"
     assert profile.certified, f"certificate failed: {profile.certificate.message}"
-    p, v = (
-        problem.shifted_initial()[:2]
-        if problem.target is not None
-        else (0.0, problem.x0[1])
-    )
-    T_rigid = rigid_min_time(
-        problem.model, um, float(p), float(v), problem.target is not None
-    )
+    p, v = problem.shifted_initial()[:2] if problem.target is not None else (0.0, problem.x0[1])
+    T_rigid = rigid_min_time(problem.model, um, float(p), float(v), problem.target is not None)
     # 1e-9: the aim for the final time; near the rigid switching curve the minimum time is
     # a square root of the position offset, so rounding alone moves it by ~1e-9
-    assert T >= T_rigid * (1.0 - 1e-9), (
-        f"T* = {T!r} below the rigid-body minimum {T_rigid!r}"
-    )
+    assert T >= T_rigid * (1.0 - 1e-9), f"T* = {T!r} below the rigid-body minimum {T_rigid!r}"
     check_switching_signs(problem, profile)
     delta = proved_optimality(problem, profile)
-    assert delta <= OPT_DELTA, (
-        f"T*(1 - {OPT_DELTA:g}) not proved infeasible: T* may not be minimal"
-    )
+    assert delta <= OPT_DELTA, f"T*(1 - {OPT_DELTA:g}) not proved infeasible: T* may not be minimal"
 
 
 def plan_and_check(problem: MoveProblem, fast_path: bool = True):
@@ -434,10 +418,6 @@ def test_free_final_position_is_never_slower_than_a_fixed_one(problem, sign, shi
     """Stopping with the final position free is never slower than stopping at another position."""
     free = MoveProblem(problem.model, problem.u_max, problem.x0, None)
     p_free = plan_and_check(free)
-    target = float(
-        p_free.final_state[0]
-    ) + sign * shift * problem.model.natural_distance(problem.u_max)
-    other = plan_and_check(
-        MoveProblem(problem.model, problem.u_max, problem.x0, target)
-    )
+    target = float(p_free.final_state[0]) + sign * shift * problem.model.natural_distance(problem.u_max)
+    other = plan_and_check(MoveProblem(problem.model, problem.u_max, problem.x0, target))
     assert other.duration >= p_free.duration * (1.0 - 1e-9)

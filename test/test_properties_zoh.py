@@ -130,13 +130,9 @@ def zoh_cases(draw, kind: str):
     u_max = draw(log_uniform(0.1, 10.0))
     size = draw(log_uniform(1e-3, 1e3))
     if kind == "rest":
-        problem = rest_to_rest(
-            model, u_max, draw(signs) * model.natural_distance(u_max) * size
-        )
+        problem = rest_to_rest(model, u_max, draw(signs) * model.natural_distance(u_max) * size)
     elif kind == "motion":
-        problem = motion_to_rest(
-            model, u_max, draw(signs) * natural_velocity(model, u_max) * size
-        )
+        problem = motion_to_rest(model, u_max, draw(signs) * natural_velocity(model, u_max) * size)
     else:
         x0 = np.zeros(model.n_states)
         x0[0] = draw(units) * model.natural_distance(u_max) * size
@@ -144,11 +140,7 @@ def zoh_cases(draw, kind: str):
         for i, (w, b) in enumerate(zip(model.omega, model.b)):
             x0[2 + 2 * i] = draw(units) * abs(b) * u_max / w**2 * size
             x0[3 + 2 * i] = draw(units) * abs(b) * u_max / w * size
-        target = (
-            None
-            if draw(st.booleans())
-            else draw(units) * model.natural_distance(u_max) * size
-        )
+        target = None if draw(st.booleans()) else draw(units) * model.natural_distance(u_max) * size
         if not np.any(x0) and not target:
             x0[1] = natural_velocity(model, u_max) * size
         problem = state_to_rest(model, u_max, x0, target)
@@ -163,18 +155,14 @@ def plan_and_check_zoh(problem: MoveProblem, rate: float, k_max: int | None = K_
         pytest.fail(f"continuous planner: SolverError: {exc}\n{describe(problem)}")
     T = continuous.duration
     wd_max = float(np.max(problem.model.omega_d)) if problem.model.n_modes else 0.0
-    if (
-        k_max is not None and T * rate > k_max
-    ):  # keep K small: lower the rate, never below the Nyquist limit
+    if k_max is not None and T * rate > k_max:  # keep K small: lower the rate, never below the Nyquist limit
         rate = max(k_max / T, wd_max / (NYQUIST_FRACTION * math.pi))
     safe_note(f"rate_hz={rate!r}")
     dt = 1.0 / rate
     try:
         sp = plan_time_optimal_zoh(problem, rate, continuous)
     except SolverError as exc:
-        pytest.fail(
-            f"sampled planner: SolverError: {exc}\n{describe(problem)}; rate_hz={rate!r}"
-        )
+        pytest.fail(f"sampled planner: SolverError: {exc}\n{describe(problem)}; rate_hz={rate!r}")
     cmds = np.asarray(sp.commands, float)
     K = cmds.size
     um = problem.u_max
@@ -182,31 +170,23 @@ def plan_and_check_zoh(problem: MoveProblem, rate: float, k_max: int | None = K_
         assert K == 0
         return sp
     assert K == sp.samples and sp.duration == pytest.approx(K * dt, rel=1e-15)
-    assert np.all(np.abs(cmds) <= um), (
-        f"|u_k| = {np.max(np.abs(cmds))!r} > u_max = {um!r}"
-    )
+    assert np.all(np.abs(cmds) <= um), f"|u_k| = {np.max(np.abs(cmds))!r} > u_max = {um!r}"
     # exact at the sample instants, by our own simulation
     X = simulate_samples(problem.model, problem.x0, cmds, dt)
     dev, scale = deviation_from_target(problem, X)
     rel = float(np.max(np.abs(dev[-1]) / scale))
-    assert rel <= FINAL_RTOL, (
-        f"own simulation: relative final-state error {rel:.3e} at sample {K}"
-    )
+    assert rel <= FINAL_RTOL, f"own simulation: relative final-state error {rel:.3e} at sample {K}"
     states = np.asarray(sp.states, float)
     assert states.shape == X.shape
     sdev = states - X
     if problem.target is None:
         sdev = sdev[:, 1:]
-    assert np.max(np.abs(sdev) / scale) <= 1e-9, (
-        "reported states differ from the exact simulation"
-    )
+    assert np.max(np.abs(sdev) / scale) <= 1e-9, "reported states differ from the exact simulation"
     # no faster than the continuous optimum
     assert K * dt >= T * (1.0 - 1e-12), f"K dt = {K * dt!r} < T* = {T!r}"
     # fewest samples: K - 1 samples need a peak above u_max (proved by the LP dual)
     bound = infeasibility_bound(problem, dt, K - 1, um)
-    assert bound > um * (1.0 + 1e-10), (
-        f"{K - 1} samples may suffice: dual bound {bound!r}, u_max {um!r}"
-    )
+    assert bound > um * (1.0 + 1e-10), f"{K - 1} samples may suffice: dual bound {bound!r}, u_max {um!r}"
     assert sp.minimal, "planner did not prove its sample count minimal"
     assert sp.lower_bound_samples <= K
     return sp
@@ -217,9 +197,7 @@ def plan_and_check_zoh(problem: MoveProblem, rate: float, k_max: int | None = K_
 @given(zoh_cases("rest"))
 @example((rest_to_rest(WB, 1.0, 1.0), 10.0))
 @example((rest_to_rest(WB, 1.0, 1e-3 * WB.natural_distance(1.0)), 50.0))
-@example(
-    (rest_to_rest(ModalModel(b0=1.0), 1.0, 1.0), 50.0)
-)  # T* = 2 s on the sample grid: 100 samples suffice
+@example((rest_to_rest(ModalModel(b0=1.0), 1.0, 1.0), 50.0))  # T* = 2 s on the sample grid: 100 samples suffice
 def test_zoh_rest_to_rest(case):
     plan_and_check_zoh(*case)
 

@@ -43,9 +43,12 @@ def simulated_command_vibration(u, w, z, u_ref, b=1.3):
 
 
 @settings(max_examples=40, deadline=None)
-@given(levels=st.lists(st.floats(-2.0, 2.0), min_size=1, max_size=6),
-       lengths=st.lists(st.floats(0.05, 3.0), min_size=6, max_size=6),
-       w=st.floats(0.3, 8.0), z=st.floats(0.0, 0.5))
+@given(
+    levels=st.lists(st.floats(-2.0, 2.0), min_size=1, max_size=6),
+    lengths=st.lists(st.floats(0.05, 3.0), min_size=6, max_size=6),
+    w=st.floats(0.3, 8.0),
+    z=st.floats(0.0, 0.5),
+)
 def test_command_vibration_formula_equals_simulation(levels, lengths, w, z):
     breaks = np.concatenate([[0.0], np.cumsum(lengths[: len(levels)])])
     u = PiecewiseConstant(breaks, np.array(levels))
@@ -55,8 +58,12 @@ def test_command_vibration_formula_equals_simulation(levels, lengths, w, z):
 
 
 @settings(max_examples=30, deadline=None)
-@given(amps=st.lists(st.floats(-1.5, 1.5), min_size=2, max_size=5), gaps=st.lists(st.floats(0.05, 2.0), min_size=4, max_size=4),
-       w=st.floats(0.3, 8.0), z=st.floats(0.0, 0.4))
+@given(
+    amps=st.lists(st.floats(-1.5, 1.5), min_size=2, max_size=5),
+    gaps=st.lists(st.floats(0.05, 2.0), min_size=4, max_size=4),
+    w=st.floats(0.3, 8.0),
+    z=st.floats(0.0, 0.4),
+)
 def test_shaper_vibration_is_the_ratio_of_shaped_to_unshaped_residual(amps, gaps, w, z):
     """V of any impulse sequence (negative too) = shaped command's residual / unshaped command's."""
     a = np.array(amps)
@@ -96,7 +103,9 @@ def test_curves_versus_ratio_and_damping():
     assert curve[0] == pytest.approx(0.0, abs=1e-12) and np.all(np.diff(curve) > 0)
     u = PiecewiseConstant(np.array([0.0, 0.9]), np.array([1.0]))
     for z, c in zip(zetas, curve):
-        expect = 100 * simulated_command_vibration(shape(u, zvd), 2.0, z, 1.0) / simulated_command_vibration(u, 2.0, z, 1.0)
+        expect = (
+            100 * simulated_command_vibration(shape(u, zvd), 2.0, z, 1.0) / simulated_command_vibration(u, 2.0, z, 1.0)
+        )
         assert c == pytest.approx(expect, rel=1e-9, abs=1e-10)
     d = command_damping_curve(shape(u, zvd), ModalModel(b0=1, omega=[2.0], zeta=[0.0], b=[1.0]), zetas)
     assert d[0] == pytest.approx(0.0, abs=1e-12)

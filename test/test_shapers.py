@@ -141,10 +141,18 @@ def test_damped_ei_agrees_with_singhose_curve_fits(name):
         fit_a = [a1, 1 - a1 - a3, a3]
         fit_t = [0.0, 0.4999 + 0.46159 * V * z + 4.26169 * V * z * z, 1.0]
     else:
-        t = [[0, 0, 0, 0], [0.49890, 0.16270, -0.54262, 6.16180], [0.99748, 0.18382, -1.58270, 8.17120],
-             [1.49920, -0.09297, -0.28338, 1.85710]]
-        a = [[0.16054, 0.76699, 2.26560, -1.22750], [0.33911, 0.45081, -2.58080, 1.73650],
-             [0.34089, -0.61533, -0.68765, 0.42261], [0.15997, -0.60246, 1.00280, -0.93145]]
+        t = [
+            [0, 0, 0, 0],
+            [0.49890, 0.16270, -0.54262, 6.16180],
+            [0.99748, 0.18382, -1.58270, 8.17120],
+            [1.49920, -0.09297, -0.28338, 1.85710],
+        ]
+        a = [
+            [0.16054, 0.76699, 2.26560, -1.22750],
+            [0.33911, 0.45081, -2.58080, 1.73650],
+            [0.34089, -0.61533, -0.68765, 0.42261],
+            [0.15997, -0.60246, 1.00280, -0.93145],
+        ]
         fit_t = [np.polyval(c[::-1], z) for c in t]
         fit_a = [np.polyval(c[::-1], z) for c in a]
     assert s.amplitudes == pytest.approx(fit_a, abs=3e-3)
@@ -213,15 +221,20 @@ def test_shaping_a_vibrating_start_is_refused():
         plan_shaped(state_to_rest(m, 1.0, x0, 1.0), design("zv", 2.0, 0.0))
 
 
-modes = st.lists(st.tuples(st.floats(0.5, 20.0), st.floats(0.0, 0.15), st.floats(0.2, 2.0), st.booleans()),
-                 min_size=1, max_size=3).filter(
-    lambda ms: all(abs(a[0] - b[0]) > 0.05 * max(a[0], b[0]) for i, a in enumerate(ms) for b in ms[i + 1 :]))
+modes = st.lists(
+    st.tuples(st.floats(0.5, 20.0), st.floats(0.0, 0.15), st.floats(0.2, 2.0), st.booleans()), min_size=1, max_size=3
+).filter(lambda ms: all(abs(a[0] - b[0]) > 0.05 * max(a[0], b[0]) for i, a in enumerate(ms) for b in ms[i + 1 :]))
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(ms=modes, b0=st.floats(0.1, 3.0), u_max=st.floats(0.1, 10.0),
-       move=st.one_of(st.just(0.0), st.floats(1e-6, 5.0), st.floats(-5.0, -1e-6)),
-       stop=st.booleans(), name=st.sampled_from(sorted(SHAPERS)))
+@given(
+    ms=modes,
+    b0=st.floats(0.1, 3.0),
+    u_max=st.floats(0.1, 10.0),
+    move=st.one_of(st.just(0.0), st.floats(1e-6, 5.0), st.floats(-5.0, -1e-6)),
+    stop=st.booleans(),
+    name=st.sampled_from(sorted(SHAPERS)),
+)
 def test_shaped_commands_never_exceed_the_bound(ms, b0, u_max, move, stop, name):
     w = [m[0] for m in ms]
     z = [m[1] for m in ms]

@@ -32,15 +32,21 @@ def test_shaper_json(capsys):
     assert code == 0 and "numerically solved" in out and "insensitivity" in out
 
 
-@pytest.mark.parametrize("argv,param", [
-    (["shaper", "zv", "--omega", "-2", "--zeta", "0"], "omega[0]"),
-    (["shaper", "ei", "--omega", "2", "--zeta", "0", "--tolerance", "0.9"], "shaper.tolerance"),
-    (["shaper", "zv", "--omega", "2,3", "--zeta", "0"], "omega/zeta"),
-    (["shaper", "nope", "--omega", "2", "--zeta", "0"], "invalid choice"),
-    (["compare", "--config", WB_FILE, "--goal", "1", "--freq-error", "1.5"], "freq_error"),
-    (["compare", "--config", WB_FILE, "--goal", "1", "--methods", "zv,bogus"], "methods"),
-    (["plan", "--config", WB_FILE, "--goal", "1", "--method", "robust_time_optimal", "--robust-order", "9"], "robust_order"),
-])
+@pytest.mark.parametrize(
+    "argv,param",
+    [
+        (["shaper", "zv", "--omega", "-2", "--zeta", "0"], "omega[0]"),
+        (["shaper", "ei", "--omega", "2", "--zeta", "0", "--tolerance", "0.9"], "shaper.tolerance"),
+        (["shaper", "zv", "--omega", "2,3", "--zeta", "0"], "omega/zeta"),
+        (["shaper", "nope", "--omega", "2", "--zeta", "0"], "invalid choice"),
+        (["compare", "--config", WB_FILE, "--goal", "1", "--freq-error", "1.5"], "freq_error"),
+        (["compare", "--config", WB_FILE, "--goal", "1", "--methods", "zv,bogus"], "methods"),
+        (
+            ["plan", "--config", WB_FILE, "--goal", "1", "--method", "robust_time_optimal", "--robust-order", "9"],
+            "robust_order",
+        ),
+    ],
+)
 def test_errors_are_one_line_exit_2(capsys, argv, param):
     code = None
     try:
@@ -61,8 +67,19 @@ def test_plan_with_shaper_and_robust_methods(capsys):
     assert d["added_time_s"] == pytest.approx(d["duration"] - d["time_optimal_duration"], abs=1e-12)
     assert d["shaper_insensitivity_width"][0] == pytest.approx(0.2871, abs=1e-4)
     assert max(abs(v) for v in d["commands"]) <= 1.0 and d["sampled_final_state_error_relative"] < 1e-9
-    code, out, _ = run(capsys, "plan", "--config", WB_FILE, "--goal", "1", "--method", "robust_time_optimal",
-                       "--robust-order", "1", "--json")
+    code, out, _ = run(
+        capsys,
+        "plan",
+        "--config",
+        WB_FILE,
+        "--goal",
+        "1",
+        "--method",
+        "robust_time_optimal",
+        "--robust-order",
+        "1",
+        "--json",
+    )
     d = json.loads(out)
     assert d["duration"] == pytest.approx(5.866, abs=5e-4) and d["certified"] and d["robust_order"] == 1
     code, out, _ = run(capsys, "plan", "--config", WB_FILE, "--goal", "1", "--method", "um_zv")
@@ -95,8 +112,19 @@ def test_options_are_validated(tmp_path, capsys):
 
 def test_compare_table_json_and_plot(tmp_path, capsys):
     png = tmp_path / "cmp.png"
-    code, out, _ = run(capsys, "compare", "--config", WB_FILE, "--goal", "1", "--methods", "zv,zvd,robust_time_optimal",
-                       "--json", "--plot", str(png))
+    code, out, _ = run(
+        capsys,
+        "compare",
+        "--config",
+        WB_FILE,
+        "--goal",
+        "1",
+        "--methods",
+        "zv,zvd,robust_time_optimal",
+        "--json",
+        "--plot",
+        str(png),
+    )
     assert code == 0 and png.stat().st_size > 10_000
     rows = {r["method"]: r for r in json.loads(out)}
     assert list(rows) == ["time_optimal", "zv", "zvd", "robust_time_optimal"]

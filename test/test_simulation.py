@@ -20,13 +20,9 @@ from flexmotion_ros.core import (
 from flexmotion_ros.core.simulation.exact import step_matrices
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
 
-MODEL = ModalModel(
-    b0=0.8, c=-0.3, omega=(1.3, 4.7, 11.0), zeta=(0.0, 0.05, 0.3), b=(1.2, -0.4, 2.5)
-)
+MODEL = ModalModel(b0=0.8, c=-0.3, omega=(1.3, 4.7, 11.0), zeta=(0.0, 0.05, 0.3), b=(1.2, -0.4, 2.5))
 RIGID_C0 = ModalModel(b0=-1.7)
-U = PiecewiseConstant(
-    np.array([0.0, 0.4, 1.3, 1.35, 2.9]), np.array([1.0, -2.0, 0.5, -0.75])
-)
+U = PiecewiseConstant(np.array([0.0, 0.4, 1.3, 1.35, 2.9]), np.array([1.0, -2.0, 0.5, -0.75]))
 X0 = np.array([0.3, -0.2, 0.05, 0.4, -0.1, 0.2, 0.01, -0.3])
 
 
@@ -78,15 +74,11 @@ def test_constant_input_matches_closed_form(model):
         u = PiecewiseConstant(np.array([0.0, t]), np.array([1.3]))
         x = final_state(model, x0, u)
         ref = closed_form_state(model, x0, 1.3, t)
-        np.testing.assert_allclose(
-            x, ref, rtol=1e-11, atol=1e-12 * (1 + np.max(np.abs(ref)))
-        )
+        np.testing.assert_allclose(x, ref, rtol=1e-11, atol=1e-12 * (1 + np.max(np.abs(ref))))
 
 
 def test_piecewise_input_at_arbitrary_times_matches_closed_form():
-    times = np.array(
-        [2.0, 0.0, 0.4, 0.41, 1.3, 5.5, 1.349, 2.9, 0.4, 10.0, 1e-7]
-    )  # unsorted, repeated, past the end
+    times = np.array([2.0, 0.0, 0.4, 0.41, 1.3, 5.5, 1.349, 2.9, 0.4, 10.0, 1e-7])  # unsorted, repeated, past the end
     X = simulate(MODEL, X0, U, times=times)
     assert X.shape == (times.size, MODEL.n_states)
     for t, x in zip(times, X):
@@ -99,9 +91,7 @@ def test_default_times_are_the_breaks_and_final_state_is_the_last():
     assert X.shape == (U.breaks.size, MODEL.n_states)
     np.testing.assert_array_equal(X[0], X0)
     for t, x in zip(U.breaks, X):
-        np.testing.assert_allclose(
-            x, closed_form_piecewise(MODEL, X0, U, t), rtol=1e-11, atol=1e-12
-        )
+        np.testing.assert_allclose(x, closed_form_piecewise(MODEL, X0, U, t), rtol=1e-11, atol=1e-12)
     np.testing.assert_allclose(final_state(MODEL, X0, U), X[-1], rtol=1e-14, atol=1e-15)
 
 
@@ -113,9 +103,7 @@ def test_include_position_false_drops_the_position():
 
 def test_accepts_an_A_B_pair():
     X = simulate((MODEL.A(), MODEL.B()), X0, U, times=[2.2])
-    np.testing.assert_allclose(
-        X, simulate(MODEL, X0, U, times=[2.2]), rtol=1e-15, atol=0
-    )
+    np.testing.assert_allclose(X, simulate(MODEL, X0, U, times=[2.2]), rtol=1e-15, atol=0)
 
 
 def test_step_matrices_are_the_exponential_and_its_integral():
@@ -136,9 +124,7 @@ def test_matches_solve_ivp_sanity_check():
     x = X0.copy()
     times = []
     ref = []
-    for a, b, level in zip(
-        U.breaks[:-1], U.breaks[1:], U.levels
-    ):  # one solve per interval
+    for a, b, level in zip(U.breaks[:-1], U.breaks[1:], U.levels):  # one solve per interval
         sol = solve_ivp(
             lambda t, y, level=level: A @ y + B * level,
             (a, b),
@@ -166,9 +152,7 @@ def test_simulate_samples_equals_simulate_at_the_sample_instants():
     ref = simulate(MODEL, X0, u, times=dt * np.arange(samples.size + 1))
     np.testing.assert_allclose(X, ref, rtol=1e-12, atol=1e-14)
     for k in range(samples.size + 1):
-        np.testing.assert_allclose(
-            X[k], closed_form_piecewise(MODEL, X0, u, k * dt), rtol=1e-11, atol=1e-12
-        )
+        np.testing.assert_allclose(X[k], closed_form_piecewise(MODEL, X0, u, k * dt), rtol=1e-11, atol=1e-12)
 
 
 # ------------------------------------------------------- piecewise-constant
@@ -176,9 +160,7 @@ def test_piecewise_constant_evaluation_and_construction():
     u = PiecewiseConstant.from_switches([1.0, 2.5], [1.0, -1.0, 0.5], 3.0)
     np.testing.assert_array_equal(u.breaks, [0.0, 1.0, 2.5, 3.0])
     assert u.duration == 3.0 and u.max_abs() == 1.0
-    np.testing.assert_array_equal(
-        u([-0.1, 0.0, 0.99, 1.0, 2.6, 3.0, 9.0]), [0, 1, 1, -1, 0.5, 0, 0]
-    )
+    np.testing.assert_array_equal(u([-0.1, 0.0, 0.99, 1.0, 2.6, 3.0, 9.0]), [0, 1, 1, -1, 0.5, 0, 0])
     s = PiecewiseConstant.from_samples([0.2, -0.4], 0.5)
     np.testing.assert_array_equal(s.breaks, [0.0, 0.5, 1.0])
     assert s.max_abs() == 0.4
@@ -219,9 +201,7 @@ def test_residual_amplitude_of_a_naive_rigid_move_and_of_rest():
     expected = math.hypot(q[0], q[1] / math.sqrt(2.0))
     assert expected > 0.1
     assert modal_amplitudes(wb, x)[0] == pytest.approx(expected, rel=1e-12)
-    np.testing.assert_array_equal(
-        modal_amplitudes(MODEL, MODEL.rest_state(3.0)), np.zeros(3)
-    )
+    np.testing.assert_array_equal(modal_amplitudes(MODEL, MODEL.rest_state(3.0)), np.zeros(3))
     # vectorised over states
     assert modal_amplitudes(MODEL, np.stack([X0, X0])).shape == (2, 3)
 

@@ -10,7 +10,13 @@ from flexmotion_ros.core.sampled.sparse_rows import NO_META, SparseRows
 def test_rows_blocks_entries_metadata_and_offsets():
     rows = SparseRows()
     rows.add([0, 2], [1.0, -2.0], 3.0, meta=(1, 4, 0, -1), s=0.25)
-    rows.add_many(np.array([[1, 2], [0, 1]]), np.array([[5.0, 6.0], [7.0, 8.0]]), [9.0, 10.0], meta=(2, [5, 6], 1, 1), s=[0.5, 0.75])
+    rows.add_many(
+        np.array([[1, 2], [0, 1]]),
+        np.array([[5.0, 6.0], [7.0, 8.0]]),
+        [9.0, 10.0],
+        meta=(2, [5, 6], 1, 1),
+        s=[0.5, 0.75],
+    )
     rows.add_many(np.array([[3]]), np.array([[4.0]]))  # rhs 0, no metadata
     rows.entry(0, 3, 11.0)  # one more term in the first row
     rows.entry(0, 0, 1.0)  # a repeated entry adds up

@@ -128,9 +128,7 @@ def test_rigid_min_time_helper_matches_the_textbook_formula():
     # our own simulation: some one-switch input of length T reaches rest at the target...
 
     def v_end(t1, T):
-        return final_state(
-            damped, [-1.0, 0.0], PiecewiseConstant.from_switches([t1], [1.0, -1.0], T)
-        )
+        return final_state(damped, [-1.0, 0.0], PiecewiseConstant.from_switches([t1], [1.0, -1.0], T))
 
     t1 = brentq(lambda t: v_end(t, T)[1], 1e-9, T - 1e-9, xtol=1e-15)
     assert abs(v_end(t1, T)[0]) < 1e-12

@@ -85,8 +85,15 @@ def peak_lp_rows(G, w):
     A_ub = np.block([[I, -np.ones((K, 1))], [-I, -np.ones((K, 1))]])
     cost = np.zeros(K + 1)
     cost[-1] = 1.0
-    res = linprog(cost, A_ub=A_ub, b_ub=np.zeros(2 * K), A_eq=np.column_stack([G.T, np.zeros(G.shape[1])]),
-                  b_eq=w, bounds=[(None, None)] * K + [(0.0, None)], method="highs")
+    res = linprog(
+        cost,
+        A_ub=A_ub,
+        b_ub=np.zeros(2 * K),
+        A_eq=np.column_stack([G.T, np.zeros(G.shape[1])]),
+        b_eq=w,
+        bounds=[(None, None)] * K + [(0.0, None)],
+        method="highs",
+    )
     assert res.status == 0, res.message
     return float(res.x[-1]), np.asarray(res.eqlin.marginals, float)
 

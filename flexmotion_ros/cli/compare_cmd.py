@@ -33,11 +33,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", required=True, help="ROS 2 parameter file (model, u_max, ...)")
     p.add_argument("--goal", type=float, help="target position (m or rad); the move starts at rest at 0")
     p.add_argument("--initial-velocity", type=float, dest="initial_velocity", help="initial rigid-body velocity")
-    p.add_argument("--freq-error", type=float, default=0.1, dest="freq_error",
-                   help="relative frequency error band for the worst residual (default 0.1)")
+    p.add_argument(
+        "--freq-error",
+        type=float,
+        default=0.1,
+        dest="freq_error",
+        help="relative frequency error band for the worst residual (default 0.1)",
+    )
     p.add_argument("--tolerance", type=float, default=0.05, help="vibration tolerance for the insensitivity (fraction)")
     p.add_argument("--methods", help="comma-separated methods (default: all)")
-    p.add_argument("--rate", type=float, help="compare the sampled commands at this rate (Hz) instead of the continuous ones")
+    p.add_argument(
+        "--rate", type=float, help="compare the sampled commands at this rate (Hz) instead of the continuous ones"
+    )
     p.add_argument("--robust-order", type=int, dest="robust_order", help="derivative order for robust_time_optimal")
     p.add_argument("--plot", help="write the sensitivity curves to this PNG file")
     p.add_argument("--json", action="store_true", help="print a JSON list of rows")
@@ -85,16 +92,18 @@ def run(args: argparse.Namespace) -> int:
         if m == "time_optimal":
             T_star = float(result.continuous.duration)
         amp = residual_amplitudes(model, problem.x0, u)
-        rows.append({
-            "method": m,
-            "duration_s": u.duration,
-            "added_time_s": u.duration - T_star if T_star is not None else math.nan,
-            "peak_command": u.max_abs(),
-            "residual_percent": float(np.max(100.0 * amp / step)),
-            "worst_in_band_percent": 100.0 * worst_in_band(u, model, e, um),
-            "insensitivity_width": command_insensitivity(u, model, args.tolerance, um).width,
-            "plan_time_s": plan_time,
-        })
+        rows.append(
+            {
+                "method": m,
+                "duration_s": u.duration,
+                "added_time_s": u.duration - T_star if T_star is not None else math.nan,
+                "peak_command": u.max_abs(),
+                "residual_percent": float(np.max(100.0 * amp / step)),
+                "worst_in_band_percent": 100.0 * worst_in_band(u, model, e, um),
+                "insensitivity_width": command_insensitivity(u, model, args.tolerance, um).width,
+                "plan_time_s": plan_time,
+            }
+        )
         curves[m] = (ratios, np.max(command_curve(u, model, ratios, um), axis=1))
     if args.plot:
         from ..plots.compare import plot_sensitivity
@@ -104,18 +113,24 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(rows))
         return 0
-    head = (f"{'method':20s} {'duration s':>11s} {'added s':>9s} {'peak |u|':>9s} {'resid %':>9s} "
-            f"{'worst %':>9s} {'width':>7s} {'plan ms':>8s}")
-    print(f"residual vibration in % of a step of u_max (worst mode); worst over +/-{100 * e:g} % frequency "
-          f"error; width: frequency-ratio interval with vibration <= {100 * args.tolerance:g} %")
+    head = (
+        f"{'method':20s} {'duration s':>11s} {'added s':>9s} {'peak |u|':>9s} {'resid %':>9s} "
+        f"{'worst %':>9s} {'width':>7s} {'plan ms':>8s}"
+    )
+    print(
+        f"residual vibration in % of a step of u_max (worst mode); worst over +/-{100 * e:g} % frequency "
+        f"error; width: frequency-ratio interval with vibration <= {100 * args.tolerance:g} %"
+    )
     print(head)
     for r in rows:
         if "error" in r:
             print(f"{r['method']:20s} error: {r['error']}")
             continue
-        print(f"{r['method']:20s} {r['duration_s']:11.6f} {r['added_time_s']:9.4f} {r['peak_command']:9.4g} "
-              f"{r['residual_percent']:9.2e} {r['worst_in_band_percent']:9.3f} {r['insensitivity_width']:7.4f} "
-              f"{1e3 * r['plan_time_s']:8.1f}")
+        print(
+            f"{r['method']:20s} {r['duration_s']:11.6f} {r['added_time_s']:9.4f} {r['peak_command']:9.4g} "
+            f"{r['residual_percent']:9.2e} {r['worst_in_band_percent']:9.3f} {r['insensitivity_width']:7.4f} "
+            f"{1e3 * r['plan_time_s']:8.1f}"
+        )
     if args.plot:
         print(f"plot: {args.plot}")
     return 0

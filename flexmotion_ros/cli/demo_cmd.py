@@ -39,7 +39,10 @@ _PKG = Path(__file__).resolve().parents[2]
 
 
 def default_config() -> str | None:
-    for candidate in (_PKG / "config" / "wie_bernstein.yaml", _PKG.parent / "share" / "flexmotion_ros" / "config" / "wie_bernstein.yaml"):
+    for candidate in (
+        _PKG / "config" / "wie_bernstein.yaml",
+        _PKG.parent / "share" / "flexmotion_ros" / "config" / "wie_bernstein.yaml",
+    ):
         if candidate.is_file():
             return str(candidate)
     return None
@@ -51,11 +54,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--goal", type=float, default=1.0, help="target position (m or rad), from rest at 0 (default 1.0)")
     p.add_argument("--plot", default="demo.png", help="PNG to write (default demo.png; '' for none)")
     p.add_argument("--rate", type=float, default=None, help="command rate (Hz; default: the file's rate_hz)")
-    p.add_argument("--realtime", action="store_true", help="plant on its own clock (default: lockstep, one sample per command)")
-    p.add_argument("--apply-at", choices=["send", "arrival"], default="send", dest="apply_at",
-                   help="real time: commands act from their send time (default: the planner's timing alone) or their "
-                        "DDS arrival at the plant (adds the transport and the plant process's scheduling)")
-    p.add_argument("--omega-scale", type=float, nargs="+", dest="omega_scale", help="plant model error: true/nominal frequency per mode")
+    p.add_argument(
+        "--realtime", action="store_true", help="plant on its own clock (default: lockstep, one sample per command)"
+    )
+    p.add_argument(
+        "--apply-at",
+        choices=["send", "arrival"],
+        default="send",
+        dest="apply_at",
+        help="real time: commands act from their send time (default: the planner's timing alone) or their "
+        "DDS arrival at the plant (adds the transport and the plant process's scheduling)",
+    )
+    p.add_argument(
+        "--omega-scale",
+        type=float,
+        nargs="+",
+        dest="omega_scale",
+        help="plant model error: true/nominal frequency per mode",
+    )
     p.add_argument("--timeout", type=float, default=60.0, help="give up after this many seconds (default 60)")
     p.set_defaults(func=run)
 
@@ -102,8 +118,16 @@ class _Demo:
         return env
 
     def _start(self, module: str, params: list[str], env: dict[str, str]) -> None:
-        cmd = [sys.executable, "-m", f"flexmotion_ros.nodes.{module}", "--ros-args", "-r", f"__ns:={self.namespace}",
-               "--params-file", self.config_path]
+        cmd = [
+            sys.executable,
+            "-m",
+            f"flexmotion_ros.nodes.{module}",
+            "--ros-args",
+            "-r",
+            f"__ns:={self.namespace}",
+            "--params-file",
+            self.config_path,
+        ]
         for p in params:
             cmd += ["-p", p]
         log = open(self.logdir / f"{module}.log", "w")  # noqa: SIM115 -- the child keeps it
@@ -124,7 +148,11 @@ class _Demo:
         for p in self.procs:
             if p.poll() is not None:
                 name = Path(p.args[2]).name if len(p.args) > 2 else "node"
-                log = "\n".join((self.logdir / f"{n}.log").read_text() for n in ("planner_node", "plant_node") if (self.logdir / f"{n}.log").exists())
+                log = "\n".join(
+                    (self.logdir / f"{n}.log").read_text()
+                    for n in ("planner_node", "plant_node")
+                    if (self.logdir / f"{n}.log").exists()
+                )
                 raise RuntimeError(f"{name} exited with status {p.returncode}:\n{log}")
 
     # ------------------------------------------------------------------ run
@@ -180,7 +208,9 @@ class _Demo:
 
         def on_state(msg) -> None:
             with lock:
-                states.append((messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), msg.effort[0]))
+                states.append(
+                    (messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), msg.effort[0])
+                )
 
         def on_diag(msg) -> None:
             st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME, f"{self.namespace}/flexmotion_planner")
@@ -206,16 +236,24 @@ class _Demo:
             while not pred():
                 self._check_alive()
                 if time.monotonic() > deadline:
-                    raise RuntimeError(f"timed out waiting for {what} (node logs in {self.logdir}); "
-                                       f"{len(commands)} commands, {len(states)} plant samples received")
+                    raise RuntimeError(
+                        f"timed out waiting for {what} (node logs in {self.logdir}); "
+                        f"{len(commands)} commands, {len(states)} plant samples received"
+                    )
                 time.sleep(0.02)
 
         try:
-            print(f"starting flexmotion_planner and flexmotion_plant ({'real time' if self.args.realtime else 'lockstep'}, "
-                  f"{self.rate:g} Hz, ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')}) ...", flush=True)
+            print(
+                f"starting flexmotion_planner and flexmotion_plant ({'real time' if self.args.realtime else 'lockstep'}, "
+                f"{self.rate:g} Hz, ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID')}) ...",
+                flush=True,
+            )
             wait(lambda: move.service_is_ready(), "the planner's ~/move service")
             # the planner must see both the plant and us on 'commands' before streaming
-            wait(lambda: int(status.get("values", {}).get("command_subscribers", 0)) >= 2, "plant and demo subscribed to commands")
+            wait(
+                lambda: int(status.get("values", {}).get("command_subscribers", 0)) >= 2,
+                "plant and demo subscribed to commands",
+            )
             req = GetPlan.Request()
             req.goal.pose.position.x = float(self.args.goal)
             t_req = time.time()
@@ -231,7 +269,10 @@ class _Demo:
             wait(lambda: len(commands) >= K + 1, f"{K + 1} commands")
             if self.args.realtime:
                 # every command integrated (from its arrival time), then watch it stand still
-                wait(lambda: int(plant_status.get("commands_applied", 0)) >= K + 1, f"the plant to apply {K + 1} commands")
+                wait(
+                    lambda: int(plant_status.get("commands_applied", 0)) >= K + 1,
+                    f"the plant to apply {K + 1} commands",
+                )
                 t_done = time.time() + 0.5
                 # states published after that (this process may lag behind the plant)
                 wait(lambda: bool(states) and states[-1][0] > t_done, "the plant's state after the move")
@@ -267,7 +308,11 @@ class _Demo:
         else:
             t_x = self.dt * np.arange(1, len(X) + 1)  # state after each command
             tol = 1e-6
-        ok = (np.abs(X[:, 0] - goal) <= tol * move) & np.all(modal_amplitudes(model, X) <= tol * move, axis=-1) & (np.abs(X[:, 1]) <= tol * move)
+        ok = (
+            (np.abs(X[:, 0] - goal) <= tol * move)
+            & np.all(modal_amplitudes(model, X) <= tol * move, axis=-1)
+            & (np.abs(X[:, 1]) <= tol * move)
+        )
         # arrival: from the first sample after which the plant stays at the goal, at rest
         bad = np.flatnonzero(~ok)
         arrived = bool(ok[-1])
@@ -305,13 +350,29 @@ class _Demo:
             lines.append(f"residual {name:<11} {a:.3e}  ({a / move:.1e} of the move)")
         if self.args.realtime:
             p = diag.get("plant", {})
-            lines.append(f"plant (real time)    {p.get('commands_applied', '?')} commands applied from their {self.args.apply_at} times; "
-                         f"worst arrival -> integration lag {float(p.get('max_lag_ms', 'nan')):.1f} ms; timeouts {p.get('timeouts', '?')}")
+            lines.append(
+                f"plant (real time)    {p.get('commands_applied', '?')} commands applied from their {self.args.apply_at} times; "
+                f"worst arrival -> integration lag {float(p.get('max_lag_ms', 'nan')):.1f} ms; timeouts {p.get('timeouts', '?')}"
+            )
         if self.args.omega_scale:
-            lines.append(f"plant model error    omega x {self.args.omega_scale}: the planner used {list(self.config.model.omega)} rad/s")
+            lines.append(
+                f"plant model error    omega x {self.args.omega_scale}: the planner used {list(self.config.model.omega)} rad/s"
+            )
         print("\n".join(lines))
         if self.args.plot:
             title = f"flexmotion demo: {goal:g} in {planned:.4f} s ({'real time' if self.args.realtime else 'lockstep'} plant, {self.rate:g} Hz)"
-            out = plot_demo(self.args.plot, t_cmd, u, self.config.u_max, t_x, X, planned_t - planned_t[0], planned_p, goal, model.names, title)
+            out = plot_demo(
+                self.args.plot,
+                t_cmd,
+                u,
+                self.config.u_max,
+                t_x,
+                X,
+                planned_t - planned_t[0],
+                planned_p,
+                goal,
+                model.names,
+                title,
+            )
             print(f"plot                 {out}")
         return 0 if arrived or self.args.omega_scale else 1

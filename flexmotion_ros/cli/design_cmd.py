@@ -28,20 +28,52 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("design", help="choose structural parameters that make the optimal move shortest")
     p.add_argument("--config", required=True, help="ROS 2 parameter file (u_max, method, ...; design: section)")
     p.add_argument("--builder", choices=sorted(PARAMETER_RANGES), help="physical model (overrides design.builder)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="sets",
-                   help="starting value of a builder argument, e.g. k=1 or masses=1,1,1 (repeatable)")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=LO:HI[:log|linear]", dest="params",
-                   help="free parameter and its bounds, e.g. k=0.5:20 or 'springs[1]=1:4' (repeatable, 1-3)")
-    p.add_argument("--goal", action="append", type=float, default=[], metavar="GAMMA",
-                   help="rest-to-rest move (m or rad); repeat for a set of tasks")
-    p.add_argument("--weight", action="append", type=float, default=None, metavar="W",
-                   help="weight of each --goal, in order (default 1 each)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        dest="sets",
+        help="starting value of a builder argument, e.g. k=1 or masses=1,1,1 (repeatable)",
+    )
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=LO:HI[:log|linear]",
+        dest="params",
+        help="free parameter and its bounds, e.g. k=0.5:20 or 'springs[1]=1:4' (repeatable, 1-3)",
+    )
+    p.add_argument(
+        "--goal",
+        action="append",
+        type=float,
+        default=[],
+        metavar="GAMMA",
+        help="rest-to-rest move (m or rad); repeat for a set of tasks",
+    )
+    p.add_argument(
+        "--weight",
+        action="append",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of each --goal, in order (default 1 each)",
+    )
     p.add_argument("--method", help="profile type (overrides the file's 'method')")
     p.add_argument("--robust-order", type=int, dest="robust_order", help="derivative order for robust methods")
-    p.add_argument("--frequency-error", type=float, dest="frequency_error",
-                   help="robustness requirement: relative frequency error to tolerate (with --max-residual)")
-    p.add_argument("--max-residual", type=float, dest="max_residual",
-                   help="largest residual mode amplitude allowed under that error (m)")
+    p.add_argument(
+        "--frequency-error",
+        type=float,
+        dest="frequency_error",
+        help="robustness requirement: relative frequency error to tolerate (with --max-residual)",
+    )
+    p.add_argument(
+        "--max-residual",
+        type=float,
+        dest="max_residual",
+        help="largest residual mode amplitude allowed under that error (m)",
+    )
     p.add_argument("--grid", help="grid points per parameter, e.g. 41 or 15,15 (default 41 / 15 / 7)")
     p.add_argument("--xtol", type=float, default=1e-5, help="refine tolerance, fraction of each range")
     p.add_argument("--workers", type=int, default=1, help="processes for the grid sweep")

@@ -80,8 +80,6 @@ NOT_OPTIONS = frozenset(
 )
 
 
-
-
 @dataclass(frozen=True)
 class PlannerConfig:
     """Everything a planner needs besides the goal.
@@ -119,9 +117,7 @@ class PlannerConfig:
             raise ConfigError("method", f"must be one of {sorted(METHOD_NAMES)}, got {self.method!r}")
         lo, hi = float(self.position_min), float(self.position_max)
         if math.isnan(lo) or math.isnan(hi) or lo >= hi:
-            raise ConfigError(
-                "limits.position_min/position_max", f"need position_min < position_max, got [{lo}, {hi}]"
-            )
+            raise ConfigError("limits.position_min/position_max", f"need position_min < position_max, got [{lo}, {hi}]")
         object.__setattr__(self, "position_min", lo)
         object.__setattr__(self, "position_max", hi)
 
@@ -136,9 +132,7 @@ class PlannerConfig:
         if not math.isfinite(t):
             raise GoalError("goal", f"must be a finite position, got {t}")
         if not self.position_min <= t <= self.position_max:
-            raise GoalError(
-                "goal", f"{t} is outside the position limits [{self.position_min}, {self.position_max}]"
-            )
+            raise GoalError("goal", f"{t} is outside the position limits [{self.position_min}, {self.position_max}]")
         return t
 
     def with_changes(self, **changes: Any) -> PlannerConfig:
@@ -279,9 +273,14 @@ _Dumper.add_representer(float, _float_repr)
 
 def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
     """A ROS 2 parameter file (``/**: ros__parameters:``) for flat parameters."""
-    clean = {k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in _INT_PARAMS else v) for k, v in params.items()}
+    clean = {
+        k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in _INT_PARAMS else v)
+        for k, v in params.items()
+    }
     clean = {k: ([float(x) for x in v] if isinstance(v, (list, tuple)) else v) for k, v in clean.items()}
-    body = yaml.dump({"/**": {"ros__parameters": unflatten(clean)}}, Dumper=_Dumper, sort_keys=False, default_flow_style=None)
+    body = yaml.dump(
+        {"/**": {"ros__parameters": unflatten(clean)}}, Dumper=_Dumper, sort_keys=False, default_flow_style=None
+    )
     return (header + body) if header else body
 
 

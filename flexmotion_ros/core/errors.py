@@ -37,7 +37,5 @@ class ConfigError(FlexmotionError):
     """A configuration file or parameter set that cannot be used."""
 
 
-
 class UnreachableError(SolverError):
     """The sampled system cannot reach the target at this rate (e.g. ``omega dt`` a multiple of ``pi``)."""
-

@@ -237,7 +237,6 @@ class Certificate:
         }
 
 
-
 class ContinuousProfile(Protocol):
     """What every method's continuous result offers."""
 
@@ -287,4 +286,3 @@ class PlanResult:
             out.update(self.sampled.to_dict())
         out.update(self.info)
         return out
-

@@ -102,4 +102,3 @@ BOUND_RTOL = 1e-12
 #: LP peak commands up to this far above u_max are tried: the LP solver's own
 #: tolerance; the exact correction then either lands within u_max or fails.
 LP_RTOL = 1e-6
-

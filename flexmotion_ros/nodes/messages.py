@@ -80,7 +80,9 @@ def from_time(t: Time) -> float:
     return t.sec + 1e-9 * t.nanosec
 
 
-def planned_trajectory(states: np.ndarray, commands: np.ndarray, dt: float, stamp: Time, max_points: int) -> JointTrajectory:
+def planned_trajectory(
+    states: np.ndarray, commands: np.ndarray, dt: float, stamp: Time, max_points: int
+) -> JointTrajectory:
     """The predicted rigid-body motion of a plan, one point per (decimated) sample."""
     msg = JointTrajectory()
     msg.header.stamp = stamp
@@ -163,7 +165,9 @@ def state_from_joint_state(msg: JointState) -> np.ndarray:
     return x
 
 
-def diagnostics(name: str, hardware_id: str, level: int, message: str, values: Mapping[str, object], stamp: Time) -> DiagnosticArray:
+def diagnostics(
+    name: str, hardware_id: str, level: int, message: str, values: Mapping[str, object], stamp: Time
+) -> DiagnosticArray:
     """One status in a DiagnosticArray (values as strings)."""
     status = DiagnosticStatus(level=bytes([level]), name=name, message=message, hardware_id=hardware_id)
     status.values = [KeyValue(key=str(k), value=_text(v)) for k, v in values.items()]

@@ -76,7 +76,9 @@ class Spec:
     def descriptor(self) -> ParameterDescriptor:
         d = ParameterDescriptor(description=self.description, read_only=self.read_only)
         if self.fp_range is not None:
-            d.floating_point_range = [FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)]
+            d.floating_point_range = [
+                FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)
+            ]
         if self.int_range is not None:
             d.integer_range = [IntegerRange(from_value=int(self.int_range[0]), to_value=int(self.int_range[1]), step=1)]
         return d
@@ -85,16 +87,37 @@ class Spec:
 def _model_specs(read_only: bool) -> list[Spec]:
     tail = " Fixed at start-up (the simulated machine)." if read_only else " A change applies to the next goal."
     return [
-        Spec("model.b0", DEFAULTS["model.b0"], "rigid-body input gain b0 (acceleration per unit input, e.g. 1/kg); non-zero." + tail, read_only),
-        Spec("model.c", DEFAULTS["model.c"], "rigid-body viscous term c (1/s), <= 0." + tail, read_only, fp_range=(-1e12, 0.0)),
+        Spec(
+            "model.b0",
+            DEFAULTS["model.b0"],
+            "rigid-body input gain b0 (acceleration per unit input, e.g. 1/kg); non-zero." + tail,
+            read_only,
+        ),
+        Spec(
+            "model.c",
+            DEFAULTS["model.c"],
+            "rigid-body viscous term c (1/s), <= 0." + tail,
+            read_only,
+            fp_range=(-1e12, 0.0),
+        ),
         Spec(
             "model.omega",
             Parameter.Type.DOUBLE_ARRAY,
             "undamped modal frequencies omega_i (rad/s), each > 0, no two equal; empty: rigid body only." + tail,
             read_only,
         ),
-        Spec("model.zeta", Parameter.Type.DOUBLE_ARRAY, "modal damping ratios zeta_i, each in [0, 1), one per mode." + tail, read_only),
-        Spec("model.b", Parameter.Type.DOUBLE_ARRAY, "modal input gains b_i, each non-zero, one per mode." + tail, read_only),
+        Spec(
+            "model.zeta",
+            Parameter.Type.DOUBLE_ARRAY,
+            "modal damping ratios zeta_i, each in [0, 1), one per mode." + tail,
+            read_only,
+        ),
+        Spec(
+            "model.b",
+            Parameter.Type.DOUBLE_ARRAY,
+            "modal input gains b_i, each non-zero, one per mode." + tail,
+            read_only,
+        ),
     ]
 
 
@@ -106,7 +129,12 @@ def _method_description() -> str:
 def planner_specs() -> list[Spec]:
     """Declared parameters of ``flexmotion_planner``."""
     return _model_specs(read_only=False) + [
-        Spec("u_max", DEFAULTS["u_max"], "actuator bound |u| <= u_max (N or the model's input unit), > 0. Applies to the next goal.", fp_range=(0.0, 1e12)),
+        Spec(
+            "u_max",
+            DEFAULTS["u_max"],
+            "actuator bound |u| <= u_max (N or the model's input unit), > 0. Applies to the next goal.",
+            fp_range=(0.0, 1e12),
+        ),
         Spec(
             "rate_hz",
             DEFAULTS["rate_hz"],
@@ -115,8 +143,16 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.0, 1e6),
         ),
         Spec("method", DEFAULTS["method"], _method_description()),
-        Spec("limits.position_min", DEFAULTS["limits.position_min"], "lowest goal position accepted (m or rad); -inf: no limit."),
-        Spec("limits.position_max", DEFAULTS["limits.position_max"], "highest goal position accepted (m or rad); inf: no limit."),
+        Spec(
+            "limits.position_min",
+            DEFAULTS["limits.position_min"],
+            "lowest goal position accepted (m or rad); -inf: no limit.",
+        ),
+        Spec(
+            "limits.position_max",
+            DEFAULTS["limits.position_max"],
+            "highest goal position accepted (m or rad); inf: no limit.",
+        ),
         Spec(
             "publish_hold_when_idle",
             True,
@@ -130,7 +166,12 @@ def planner_specs() -> list[Spec]:
             read_only=True,
             int_range=(0, 99),
         ),
-        Spec("initial_position", 0.0, "position (m or rad) the planner assumes, at rest, at start-up. Fixed at start-up.", read_only=True),
+        Spec(
+            "initial_position",
+            0.0,
+            "position (m or rad) the planner assumes, at rest, at start-up. Fixed at start-up.",
+            read_only=True,
+        ),
         Spec(
             "replan_lead_s",
             0.05,
@@ -145,13 +186,27 @@ def planner_specs() -> list[Spec]:
             int_range=(2, 10_000_000),
         ),
         Spec("frame_id", "world", "frame_id of the paths answered by ~/move and ~/plan."),
-        Spec("diagnostics_period_s", 1.0, "period (s) of the status on /diagnostics (also sent on every change), in [0.01, 3600]. Fixed at start-up.", read_only=True, fp_range=(0.01, 3600.0)),
+        Spec(
+            "diagnostics_period_s",
+            1.0,
+            "period (s) of the status on /diagnostics (also sent on every change), in [0.01, 3600]. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.01, 3600.0),
+        ),
     ]
 
 
 #: Planner parameters that are not part of the core's PlannerConfig.
 PLANNER_NODE_ONLY = frozenset(
-    {"publish_hold_when_idle", "stream_priority", "initial_position", "replan_lead_s", "max_trajectory_points", "frame_id", "diagnostics_period_s"}
+    {
+        "publish_hold_when_idle",
+        "stream_priority",
+        "initial_position",
+        "replan_lead_s",
+        "max_trajectory_points",
+        "frame_id",
+        "diagnostics_period_s",
+    }
 )
 
 
@@ -165,7 +220,12 @@ def plant_specs() -> list[Spec]:
             read_only=True,
             fp_range=(0.0, 1e6),
         ),
-        Spec("lockstep", False, "true: advance one sample period per command received (deterministic, for tests); false: real time. Fixed at start-up.", read_only=True),
+        Spec(
+            "lockstep",
+            False,
+            "true: advance one sample period per command received (deterministic, for tests); false: real time. Fixed at start-up.",
+            read_only=True,
+        ),
         Spec(
             "publish_rate_hz",
             0.0,
@@ -174,13 +234,22 @@ def plant_specs() -> list[Spec]:
             read_only=True,
             fp_range=(0.0, 1e6),
         ),
-        Spec("command_timeout", 0.1, "real-time mode: seconds without a command after which zero force is applied, in [0, 3600].", fp_range=(0.0, 3600.0)),
+        Spec(
+            "command_timeout",
+            0.1,
+            "real-time mode: seconds without a command after which zero force is applied, in [0, 3600].",
+            fp_range=(0.0, 3600.0),
+        ),
         Spec(
             "plant.omega_scale",
             Parameter.Type.DOUBLE_ARRAY,
             "model error: true/nominal frequency ratio of each mode (each > 0); empty: 1 for every mode.",
         ),
-        Spec("plant.extra_zeta", Parameter.Type.DOUBLE_ARRAY, "model error: damping ratio added to each mode (each >= 0, total < 1); empty: none."),
+        Spec(
+            "plant.extra_zeta",
+            Parameter.Type.DOUBLE_ARRAY,
+            "model error: damping ratio added to each mode (each >= 0, total < 1); empty: none.",
+        ),
         Spec(
             "plant.coulomb_force",
             0.0,
@@ -193,13 +262,20 @@ def plant_specs() -> list[Spec]:
             "real-time mode: a command acts from its DDS 'arrival' time at this node, or from its 'send' time at the "
             "publisher (a transport of constant latency; same clock needed, i.e. one machine).",
         ),
-        Spec("plant.initial_position", 0.0, "initial rigid-body position (m or rad), at rest. Fixed at start-up.", read_only=True),
+        Spec(
+            "plant.initial_position",
+            0.0,
+            "initial rigid-body position (m or rad), at rest. Fixed at start-up.",
+            read_only=True,
+        ),
     ]
 
 
 #: Names the planner must not mistake for method options (the plant's, rclpy's own).
 PLANT_ONLY_PREFIXES = ("plant.", "qos_overrides.")
-PLANT_ONLY_NAMES = frozenset({"lockstep", "command_timeout", "publish_rate_hz", "use_sim_time", "start_type_description_service"})
+PLANT_ONLY_NAMES = frozenset(
+    {"lockstep", "command_timeout", "publish_rate_hz", "use_sim_time", "start_type_description_service"}
+)
 
 
 # --------------------------------------------------------------------------- declaration
@@ -216,7 +292,11 @@ def declare(node: Node, specs: Iterable[Spec]) -> None:
         try:
             node.declare_parameter(spec.name, spec.default, spec.descriptor())
         except InvalidParameterTypeException as exc:
-            hint = " (write doubles as 2.0, not 2)" if isinstance(spec.default, float) or spec.default == Parameter.Type.DOUBLE_ARRAY else ""
+            hint = (
+                " (write doubles as 2.0, not 2)"
+                if isinstance(spec.default, float) or spec.default == Parameter.Type.DOUBLE_ARRAY
+                else ""
+            )
             raise ConfigError(spec.name, f"wrong type{hint}: {exc}") from None
         except InvalidParameterValueException as exc:
             raise ConfigError(spec.name, str(exc)) from None
@@ -249,11 +329,20 @@ def declare_method_options(node: Node, known: Iterable[str]) -> list[str]:
     known = set(known)
     names = []
     for name, value in sorted(parameter_overrides(node).items()):
-        if name in known or node.has_parameter(name) or name in PLANT_ONLY_NAMES or name.startswith(PLANT_ONLY_PREFIXES):
+        if (
+            name in known
+            or node.has_parameter(name)
+            or name in PLANT_ONLY_NAMES
+            or name.startswith(PLANT_ONLY_PREFIXES)
+        ):
             continue
         if value is None:
             continue
-        spec = Spec(name, value, "option of the planning method (see 'method'); validated by the method. A change applies to the next goal.")
+        spec = Spec(
+            name,
+            value,
+            "option of the planning method (see 'method'); validated by the method. A change applies to the next goal.",
+        )
         declare(node, [spec])
         names.append(name)
     return names
@@ -329,7 +418,13 @@ class PlantConfig:
 
 def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     """Validate the plant's parameters; raise :class:`FlexmotionError` naming the bad one."""
-    base = config_from_parameters({k: values[k] for k in ("model.b0", "model.c", "model.omega", "model.zeta", "model.b", "rate_hz") if k in values})
+    base = config_from_parameters(
+        {
+            k: values[k]
+            for k in ("model.b0", "model.c", "model.omega", "model.zeta", "model.b", "rate_hz")
+            if k in values
+        }
+    )
     nominal = base.model
     n = nominal.n_modes
     scale = list(values.get("plant.omega_scale") or [])

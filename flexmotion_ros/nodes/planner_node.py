@@ -95,7 +95,10 @@ SPLICE_ATTEMPTS = 4
 COMMAND_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: ``~/planned_trajectory``: late joiners get the current plan.
 LATCHED_QOS = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    history=HistoryPolicy.KEEP_LAST,
 )
 
 
@@ -185,7 +188,9 @@ class PlannerNode(Node):
 
         planning = MutuallyExclusiveCallbackGroup()
         self.create_subscription(Float64, "~/goal", self._on_goal, 10, callback_group=planning)
-        self.create_subscription(JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, 10, callback_group=planning)
+        self.create_subscription(
+            JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, 10, callback_group=planning
+        )
         self.create_service(GetPlan, "~/move", self._on_move, callback_group=planning)
         self.create_service(GetPlan, "~/plan", self._on_plan, callback_group=planning)
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=planning)
@@ -232,7 +237,9 @@ class PlannerNode(Node):
 
     # ------------------------------------------------------------- parameters
     def _values(self) -> dict[str, Any]:
-        return declared_values(self, self._param_names if hasattr(self, "_param_names") else [s.name for s in planner_specs()])
+        return declared_values(
+            self, self._param_names if hasattr(self, "_param_names") else [s.name for s in planner_specs()]
+        )
 
     def _validate(self, candidate: dict[str, Any]) -> None:
         planner_config(candidate)
@@ -281,7 +288,9 @@ class PlannerNode(Node):
             states = self._config.model.rest_state(self._position)[None, :]
             response.plan = messages.path(states, self.stream.dt, out.start_time, self._frame_id, self._max_points)
         else:
-            response.plan = messages.path(out.segment.states, self.stream.dt, out.start_time, self._frame_id, self._max_points)
+            response.plan = messages.path(
+                out.segment.states, self.stream.dt, out.start_time, self._frame_id, self._max_points
+            )
         return response
 
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -385,7 +394,9 @@ class PlannerNode(Node):
                 self.stream.start_now(seg)
             self._installed(seg, target, info, source)
             return Outcome(True, "", seg, self._ros_time_of(seg.start), info)
-        raise SolverError(f"planning overran its look-ahead {SPLICE_ATTEMPTS} times (last {lead} samples); the move continues unchanged")
+        raise SolverError(
+            f"planning overran its look-ahead {SPLICE_ATTEMPTS} times (last {lead} samples); the move continues unchanged"
+        )
 
     def _plan_info(self, result: PlanResult, plan_time: float) -> dict[str, Any]:
         s = result.sampled
@@ -408,7 +419,9 @@ class PlannerNode(Node):
         self._position = float(seg.states[-1, 0])
         self._status.moving(target if target is not None else self._position, info)
         stamp = messages.to_time(self._ros_time_of(seg.start))
-        self._trajectory_pub.publish(messages.planned_trajectory(seg.states, seg.commands, self.stream.dt, stamp, self._max_points))
+        self._trajectory_pub.publish(
+            messages.planned_trajectory(seg.states, seg.commands, self.stream.dt, stamp, self._max_points)
+        )
         if seg.samples + 1 > self._max_points:
             self.get_logger().info(
                 f"~/planned_trajectory decimated: {seg.samples + 1} samples > max_trajectory_points {self._max_points}"

@@ -45,7 +45,9 @@ class StatusReporter:
         after ``state``, ``planning``, ``last_error`` and ``target``.
     """
 
-    def __init__(self, node: Node, period_s: float, target: float | None, context: Callable[[], Mapping[str, Any]]) -> None:
+    def __init__(
+        self, node: Node, period_s: float, target: float | None, context: Callable[[], Mapping[str, Any]]
+    ) -> None:
         self._node = node
         self._context = context
         self._lock = threading.Lock()
@@ -137,7 +139,13 @@ class StatusReporter:
     def status(self) -> tuple[int, str, dict[str, Any]]:
         """``(level, message, values)`` of the status on /diagnostics."""
         with self._lock:
-            state, err, last, target, planning = self._state, self._last_error, dict(self._last), self._target, self._planning
+            state, err, last, target, planning = (
+                self._state,
+                self._last_error,
+                dict(self._last),
+                self._target,
+                self._planning,
+            )
         level = DiagnosticStatus.ERROR if err else DiagnosticStatus.OK
         level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
         message = f"error: {err}" if err else state
@@ -156,7 +164,14 @@ class StatusReporter:
         level, message, values = self.status()
         node = self._node
         self._pub.publish(
-            messages.diagnostics(DIAGNOSTIC_NAME, node.get_fully_qualified_name(), level, message, values, node.get_clock().now().to_msg())
+            messages.diagnostics(
+                DIAGNOSTIC_NAME,
+                node.get_fully_qualified_name(),
+                level,
+                message,
+                values,
+                node.get_clock().now().to_msg(),
+            )
         )
 
 

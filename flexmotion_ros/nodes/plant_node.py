@@ -120,7 +120,9 @@ class PlantNode(Node):
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # commands one at a time, in order; the timers in their own groups
-        self.create_subscription(Float64MultiArray, "commands", self._on_command, PLANT_QOS, callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_subscription(
+            Float64MultiArray, "commands", self._on_command, PLANT_QOS, callback_group=MutuallyExclusiveCallbackGroup()
+        )
         if not cfg.lockstep:
             rate = float(self._values()["publish_rate_hz"]) or cfg.rate_hz
             self.create_timer(1.0 / rate, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
@@ -129,7 +131,9 @@ class PlantNode(Node):
         gc.freeze()
         errors = []
         if cfg.model != cfg.nominal:
-            errors.append(f"omega {list(cfg.model.omega)} rad/s, zeta {list(cfg.model.zeta)} (file: {list(cfg.nominal.omega)}, {list(cfg.nominal.zeta)})")
+            errors.append(
+                f"omega {list(cfg.model.omega)} rad/s, zeta {list(cfg.model.zeta)} (file: {list(cfg.nominal.omega)}, {list(cfg.nominal.zeta)})"
+            )
         if cfg.coulomb_force > 0.0:
             errors.append(f"Coulomb friction {cfg.coulomb_force:g} N")
         self._model_error = "; ".join(errors) or "none"
@@ -280,7 +284,14 @@ class PlantNode(Node):
         ok = DiagnosticStatus.OK
         level = ok[0] if isinstance(ok, (bytes, bytearray)) else int(ok)
         self._diag_pub.publish(
-            messages.diagnostics(DIAGNOSTIC_NAME, self.get_fully_qualified_name(), level, values["mode"], values, self.get_clock().now().to_msg())
+            messages.diagnostics(
+                DIAGNOSTIC_NAME,
+                self.get_fully_qualified_name(),
+                level,
+                values["mode"],
+                values,
+                self.get_clock().now().to_msg(),
+            )
         )
 
 

@@ -9,8 +9,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 
-def plot_sensitivity(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: str, tolerance: float | None = None,
-                     band: float | None = None, title: str = "") -> None:
+def plot_sensitivity(
+    curves: dict[str, tuple[np.ndarray, np.ndarray]],
+    path: str,
+    tolerance: float | None = None,
+    band: float | None = None,
+    title: str = "",
+) -> None:
     """Write the sensitivity curves to ``path`` (PNG).
 
     Parameters

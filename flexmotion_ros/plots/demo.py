@@ -54,8 +54,14 @@ def plot_demo(
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True, constrained_layout=True)
     ax_u, ax_p, ax_q = axes
     if len(t_command):
-        ax_u.step(np.append(t_command, t_command[-1] + (t_command[-1] - t_command[-2] if len(t_command) > 1 else 0.0)),
-                  np.append(command, command[-1]), where="post", lw=1.2, color="C0", label="command (streamed)")
+        ax_u.step(
+            np.append(t_command, t_command[-1] + (t_command[-1] - t_command[-2] if len(t_command) > 1 else 0.0)),
+            np.append(command, command[-1]),
+            where="post",
+            lw=1.2,
+            color="C0",
+            label="command (streamed)",
+        )
     for s in (1, -1):
         ax_u.axhline(s * u_max, ls="--", lw=0.8, color="grey")
     ax_u.set_ylabel("command u (N)")

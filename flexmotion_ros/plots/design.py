@@ -38,11 +38,26 @@ def plot_design(result: DesignResult, path: str) -> None:
         inside = [e for e in evs if par.lower <= e.values[0] <= par.upper]  # the start may lie outside
         ok = sorted((e for e in inside if e.feasible), key=lambda e: e.values[0])
         x = np.array([e.values[0] for e in ok])
-        ax.plot(x, [e.objective for e in ok], ".-", color="C0", lw=1.2, ms=4, label="weighted move time" if len(pb.tasks) > 1 else "move time")
+        ax.plot(
+            x,
+            [e.objective for e in ok],
+            ".-",
+            color="C0",
+            lw=1.2,
+            ms=4,
+            label="weighted move time" if len(pb.tasks) > 1 else "move time",
+        )
         ax.plot(x, [rigid_bound(pb, e.values) for e in ok], "--", color="0.4", lw=0.8, label="rigid-body bound")
         if len(pb.tasks) > 1:
             for i, t in enumerate(pb.tasks):
-                ax.plot(x, [e.times[i] for e in ok], "-", lw=0.8, alpha=0.7, label=f"goal {t.gamma:g} alone (weight {t.weight:g})")
+                ax.plot(
+                    x,
+                    [e.times[i] for e in ok],
+                    "-",
+                    lw=0.8,
+                    alpha=0.7,
+                    label=f"goal {t.gamma:g} alone (weight {t.weight:g})",
+                )
         bad = [e.values[0] for e in inside if not e.feasible]
         if bad:
             y0 = min(e.objective for e in ok) if ok else 0.0
@@ -50,8 +65,14 @@ def plot_design(result: DesignResult, path: str) -> None:
         ax.axvspan(par.lower, par.upper, color="0.92", zorder=-1)
         if result.start_evaluation.feasible:
             ax.plot([start[names[0]]], [result.start_evaluation.objective], "s", color="C2", ms=7, label="start")
-        ax.plot([best[names[0]]], [result.objective], "*", color="C3", ms=14,
-                label=f"optimum {names[0]} = {best[names[0]]:.6g}: {result.objective:.6f} s")
+        ax.plot(
+            [best[names[0]]],
+            [result.objective],
+            "*",
+            color="C3",
+            ms=14,
+            label=f"optimum {names[0]} = {best[names[0]]:.6g}: {result.objective:.6f} s",
+        )
         if par.scale == "log":
             ax.set_xscale("log")
         ax.set_xlabel(_label(result, names[0]))
@@ -79,10 +100,26 @@ def plot_design(result: DesignResult, path: str) -> None:
         on_grid = {(float(a), float(b)) for a in xa for b in ya}
         refine = [e for e in evs if e.feasible and len(names) == 2 and tuple(e.values) not in on_grid]
         if refine:
-            ax.plot([e.values[0] for e in refine], [e.values[1] for e in refine], ".", color="w", ms=3, label="refine", clip_on=False)
+            ax.plot(
+                [e.values[0] for e in refine],
+                [e.values[1] for e in refine],
+                ".",
+                color="w",
+                ms=3,
+                label="refine",
+                clip_on=False,
+            )
         ax.plot([start[names[0]]], [start[names[1]]], "s", color="C2", ms=7, label="start", clip_on=False, zorder=5)
-        ax.plot([best[names[0]]], [best[names[1]]], "*", color="C3", ms=15, clip_on=False, zorder=6,
-                label=f"optimum: {result.objective:.6f} s")
+        ax.plot(
+            [best[names[0]]],
+            [best[names[1]]],
+            "*",
+            color="C3",
+            ms=15,
+            clip_on=False,
+            zorder=6,
+            label=f"optimum: {result.objective:.6f} s",
+        )
         for axis, p in zip("xy", pb.parameters[:2]):
             if p.scale == "log":
                 getattr(ax, f"set_{axis}scale")("log")

@@ -93,7 +93,9 @@ class Probe(Node):
 
         return cb
 
-    def _on_command(self, msg: Float64MultiArray, info: dict) -> None:  # rclpy passes MessageInfo to two-argument callbacks
+    def _on_command(
+        self, msg: Float64MultiArray, info: dict
+    ) -> None:  # rclpy passes MessageInfo to two-argument callbacks
         with self.lock:
             self.commands.append((time.monotonic(), messages.command_value(msg), int(info["source_timestamp"])))
 
@@ -171,8 +173,14 @@ class Ros:
     def connected(self, planner: PlannerNode, subscribers: int = 2, timeout: float = 10.0) -> None:
         """Wait until the command stream, the goal topics and the services are matched."""
         probe = self.probe
-        wait_for(lambda: planner.commands_publisher.get_subscription_count() >= subscribers, timeout, "commands subscribers")
-        wait_for(lambda: probe.goal_pub.get_subscription_count() >= 1 and probe.jt_pub.get_subscription_count() >= 1, timeout, "goal topics")
+        wait_for(
+            lambda: planner.commands_publisher.get_subscription_count() >= subscribers, timeout, "commands subscribers"
+        )
+        wait_for(
+            lambda: probe.goal_pub.get_subscription_count() >= 1 and probe.jt_pub.get_subscription_count() >= 1,
+            timeout,
+            "goal topics",
+        )
         for client in (probe.move, probe.plan, probe.stop, probe.set_params):
             assert client.wait_for_service(timeout_sec=timeout), client.srv_name
 

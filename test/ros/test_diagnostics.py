@@ -27,7 +27,10 @@ def test_status_is_published_during_a_long_plan(ros, monkeypatch):
     def planning_statuses() -> int:
         with ros.probe.lock:
             diags = list(ros.probe.diagnostics)
-        sts = [messages.diagnostic_values(d, planner_node.DIAGNOSTIC_NAME, planner.get_fully_qualified_name()) for d in diags]
+        sts = [
+            messages.diagnostic_values(d, planner_node.DIAGNOSTIC_NAME, planner.get_fully_qualified_name())
+            for d in diags
+        ]
         return sum(1 for st in sts if st is not None and st[2].get("planning") == "~/goal")
 
     # every 0.1 s during the 2 s plan: the old executor timer sent none (it waited for the plan)

@@ -28,7 +28,12 @@ def error_status(ros) -> str:
 
 @pytest.mark.parametrize(
     "goal, words",
-    [(math.nan, "finite"), (math.inf, "finite"), (-math.inf, "finite"), (3.0, "outside the position limits [-2.0, 2.0]")],
+    [
+        (math.nan, "finite"),
+        (math.inf, "finite"),
+        (-math.inf, "finite"),
+        (3.0, "outside the position limits [-2.0, 2.0]"),
+    ],
 )
 def test_bad_goal_is_refused_nothing_moves_node_keeps_serving(ros, goal, words):
     planner = ros.planner(**LIMITS)

@@ -31,7 +31,9 @@ def test_planner_reads_the_cli_parameter_file(ros, tmp_path):
 
 
 def test_planner_leaves_the_plant_parameters_of_a_shared_file_alone(ros):
-    planner = ros.planner(**{"plant.omega_scale": [1.1, 1.0], "lockstep": True, "command_timeout": 0.2, "robust_order": 2})
+    planner = ros.planner(
+        **{"plant.omega_scale": [1.1, 1.0], "lockstep": True, "command_timeout": 0.2, "robust_order": 2}
+    )
     assert not planner.has_parameter("plant.omega_scale") and not planner.has_parameter("lockstep")
     assert planner.config.options == {"robust_order": 2}
 

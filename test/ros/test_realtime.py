@@ -57,7 +57,9 @@ def test_real_time_plant_holds_each_command_from_its_send_time(ros):
     e = np.abs((sent - sent[0]) - np.arange(n) * 0.01)
     du = np.abs(np.diff(np.concatenate([[0.0], u])))
     amp = modal_amplitudes(model, x_last)
-    print(f"stream timing error median {np.median(e) * 1e3:.2f} ms, max {e.max() * 1e3:.2f} ms; v {x_last[1]:.2e}, mode amplitude {amp[0]:.2e}")
+    print(
+        f"stream timing error median {np.median(e) * 1e3:.2f} ms, max {e.max() * 1e3:.2f} ms; v {x_last[1]:.2e}, mode amplitude {amp[0]:.2e}"
+    )
     assert abs(x_last[1]) <= 0.5 * float(du @ e) + 1e-4, (x_last, e.max())
     assert amp[0] <= float(du @ e) / 2**0.5 + 1e-4, (x_last, e.max())
     # the plant published on its own clock throughout, at about rate_hz

@@ -220,8 +220,17 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
         if y is None:
             break
         lam = y[ol:]
-        cand = LPSolution(K, sol.u, t, -y[(K - 1) * n : K * n] * kd.sc, meta, np.array(svals, float),
-                          np.maximum(lam, 0.0), sol.segments, sol.levels)
+        cand = LPSolution(
+            K,
+            sol.u,
+            t,
+            -y[(K - 1) * n : K * n] * kd.sc,
+            meta,
+            np.array(svals, float),
+            np.maximum(lam, 0.0),
+            sol.segments,
+            sol.levels,
+        )
         bound, _ = dual_bound(lp, cand)
         if bound > best_bound:
             best, best_bound = cand, bound

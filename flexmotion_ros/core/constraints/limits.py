@@ -97,7 +97,9 @@ def _positive_or_none(name: str, value, unit: str) -> float | None:
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise FlexmotionError(name, f"must be a number > 0{(' ' + unit) if unit else ''} (or .inf: no limit), got {value!r}") from None
+        raise FlexmotionError(
+            name, f"must be a number > 0{(' ' + unit) if unit else ''} (or .inf: no limit), got {value!r}"
+        ) from None
     if math.isinf(x) and x > 0:
         return None
     if not math.isfinite(x) or x <= 0.0:
@@ -106,7 +108,9 @@ def _positive_or_none(name: str, value, unit: str) -> float | None:
 
 
 # ------------------------------------------------------- in-between maxima
-def deflection_peaks(model: ModalModel, states: np.ndarray, commands: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def deflection_peaks(
+    model: ModalModel, states: np.ndarray, commands: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Exact ``max |q_i(t)|`` over each sample interval, and where it occurs.
 
     Parameters

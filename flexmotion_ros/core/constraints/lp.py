@@ -101,7 +101,9 @@ class Segments:
     @classmethod
     def from_runs(cls, K: int, runs: list[tuple[int, int, float]]) -> Segments:
         runs = sorted((int(a), int(b), float(s)) for a, b, s in runs if 1 <= a < b <= K - 1)
-        return cls(K, np.array([r[0] for r in runs], int), np.array([r[1] for r in runs], int), np.array([r[2] for r in runs]))
+        return cls(
+            K, np.array([r[0] for r in runs], int), np.array([r[1] for r in runs], int), np.array([r[2] for r in runs])
+        )
 
     def run_of(self) -> np.ndarray:
         """Run index of every sample, -1 for free samples."""
@@ -159,7 +161,8 @@ class LimitLP:
         for b in self.blocks:
             if b.mode is not None and abs(x[2 + 2 * b.mode]) > b.D[0]:
                 raise GoalError(
-                    "initial_state", f"mode {b.mode} deflection {x[2 + 2 * b.mode]} exceeds limits.deflection_max[{b.mode}] = {b.D[0]}"
+                    "initial_state",
+                    f"mode {b.mode} deflection {x[2 + 2 * b.mode]} exceeds limits.deflection_max[{b.mode}] = {b.D[0]}",
                 )
 
     def kdata(self, K: int) -> KData:
@@ -178,7 +181,9 @@ class LimitLP:
         return self._at_cache[key]
 
     # ------------------------------------------------------------------ solve
-    def solve(self, K: int, seg: Segments | None = None, mode: str = "scaled", t_fix: float | None = None) -> LPSolution | None:
+    def solve(
+        self, K: int, seg: Segments | None = None, mode: str = "scaled", t_fix: float | None = None
+    ) -> LPSolution | None:
         """Solve at ``K`` samples (``seg`` None: every sample free); ``mode`` ``"scaled"``, ``"smooth"`` or ``"feasible"``.
 
         ``"feasible"``: any sequence meeting the limits scaled by ``t_fix`` (no
@@ -295,22 +300,33 @@ class LimitLP:
             # limit rows at the knots (sample 0 is the initial state, sample K the target)
             kk = kn[kn >= 1]
             for sgn in (1.0, -1.0):
-                U.add_many(np.column_stack([var(kk, 0), T[kk]]),
-                           np.column_stack([np.full(kk.size, sgn), np.full(kk.size, -1.0)]), np.zeros(kk.size),
-                           meta=(STATE, kk, b.idx[0], sgn))
+                U.add_many(
+                    np.column_stack([var(kk, 0), T[kk]]),
+                    np.column_stack([np.full(kk.size, sgn), np.full(kk.size, -1.0)]),
+                    np.zeros(kk.size),
+                    meta=(STATE, kk, b.idx[0], sgn),
+                )
             # generated rows inside runs
             for k in sorted(extra[bi]):
                 if k >= K or knot[k] or run[k] < 0:
                     continue
                 cols, vals = self._run_state(k, 0, bi, seg, run, kd, var, lvar, T)
                 for sgn in (1.0, -1.0):
-                    U.add(cols, np.concatenate([sgn * vals[:-1], [sgn * vals[-1] - 1.0]]), 0.0, meta=(STATE, k, b.idx[0], sgn))
+                    U.add(
+                        cols,
+                        np.concatenate([sgn * vals[:-1], [sgn * vals[-1] - 1.0]]),
+                        0.0,
+                        meta=(STATE, k, b.idx[0], sgn),
+                    )
         # command bounds |v| <= t (scaled) or <= 1
         ub_t, ub_rhs = (-1.0, 0.0) if scaled else (0.0, ubound)
         if scaled:
             for sgn in (1.0, -1.0):
-                U.add_many(np.column_stack([uvar[F], T[F]]),
-                           np.column_stack([np.full(F.size, sgn), np.full(F.size, -1.0)]), np.zeros(F.size))
+                U.add_many(
+                    np.column_stack([uvar[F], T[F]]),
+                    np.column_stack([np.full(F.size, sgn), np.full(F.size, -1.0)]),
+                    np.zeros(F.size),
+                )
         for r in range(nR):
             ends = [seg.start[r]] if not (sl is not None and seg.slope[r]) else [seg.start[r], seg.end[r] - 1]
             for m in ends:
@@ -343,7 +359,9 @@ class LimitLP:
                     if kind == "slew":  # +-step / slew - t <= 0
                         rc.append(T[edges])
                         rv = [v1 / sl, v2 / sl, rt / sl - 1.0]
-                        U.add_many(np.column_stack(rc), np.column_stack(rv), np.zeros(edges.size), meta=(SLEW, edges, 0, sgn))
+                        U.add_many(
+                            np.column_stack(rc), np.column_stack(rv), np.zeros(edges.size), meta=(SLEW, edges, 0, sgn)
+                        )
                     else:  # +-step - tau <= 0
                         rc += [T[edges], tvar]
                         rv += [rt, np.full(edges.size, -1.0)]
@@ -433,7 +451,9 @@ class LimitLP:
         keep_rows = meta[:, 0] >= 0
         lam = -np.asarray(res.ineqlin.marginals, float)[keep_rows] if U.n else np.zeros(0)
         nu = np.asarray(res.eqlin.marginals, float)[:n_arrival]
-        return LPSolution(K, self.um * v, t, nu, meta[keep_rows], U.s_array()[keep_rows], np.maximum(lam, 0.0), seg, levels)
+        return LPSolution(
+            K, self.um * v, t, nu, meta[keep_rows], U.s_array()[keep_rows], np.maximum(lam, 0.0), seg, levels
+        )
 
     def _run_state(self, k, c, bi, seg, run, kd, var, lvar, T):
         """Columns/values of component ``c`` of block ``bi``'s state at sample ``k`` inside a run; t last."""

@@ -74,8 +74,6 @@ WIDE = 4
 LOOSEN = 1e-9
 
 
-
-
 @dataclass
 class LimitedProfile:
     """The fewest-sample move under limits.
@@ -135,8 +133,16 @@ class _Level:
     cannot be reached at all raises :class:`UnreachableError`.
     """
 
-    def __init__(self, problem: MoveProblem, rate: float, limits: Limits, K_cap: int, lp: LimitLP | None = None,
-                 ref: tuple | None = None, width: int = 0) -> None:
+    def __init__(
+        self,
+        problem: MoveProblem,
+        rate: float,
+        limits: Limits,
+        K_cap: int,
+        lp: LimitLP | None = None,
+        ref: tuple | None = None,
+        width: int = 0,
+    ) -> None:
         self.rate = rate
         self.lp = lp if lp is not None else LimitLP(problem, 1.0 / rate, limits)
         self.ref = ref  # (runs, K_ref) or None: every sample free
@@ -159,7 +165,10 @@ class _Level:
     def _cap(self, K: int) -> None:
         if K > self.K_cap:
             names = ", ".join(f"limits.{n}" for n in self.lp.limits.active)
-            raise GoalError(names, f"no move within {self.K_cap / self.rate:.4g} s ({MAX_FACTOR} x the unlimited move) satisfies the limits; relax them")
+            raise GoalError(
+                names,
+                f"no move within {self.K_cap / self.rate:.4g} s ({MAX_FACTOR} x the unlimited move) satisfies the limits; relax them",
+            )
 
     def probe(self, K: int) -> float:
         if K not in self.t:
@@ -349,9 +358,22 @@ def plan_limited_zoh(
         unlimited = plan_time_optimal_zoh(problem, rate)
     K0 = unlimited.samples
     if not limits.active or K0 == 0:
-        prof = verified_samples(problem, unlimited.commands, dt, "limited", unlimited.minimal, unlimited.lower_bound_samples, None, {}, t0)
+        prof = verified_samples(
+            problem, unlimited.commands, dt, "limited", unlimited.minimal, unlimited.lower_bound_samples, None, {}, t0
+        )
         peaks, _, _ = check_limits(problem.model, problem.x0, unlimited.commands, dt, limits)
-        return LimitedProfile(prof, limits, K0, unlimited.lower_bound_samples, unlimited.minimal, 0.0, peaks, 0, 0, time.perf_counter() - t0)
+        return LimitedProfile(
+            prof,
+            limits,
+            K0,
+            unlimited.lower_bound_samples,
+            unlimited.minimal,
+            0.0,
+            peaks,
+            0,
+            0,
+            time.perf_counter() - t0,
+        )
     proved = K0 if unlimited.minimal else unlimited.lower_bound_samples  # every K < proved is infeasible
     K_cap = max(K0 * MAX_FACTOR, K0 + 1000)
     T_star = unlimited.continuous.duration if unlimited.continuous is not None else (proved - 1) * dt
@@ -425,5 +447,11 @@ def plan_limited_zoh(
         lp_solves=lp.solves + solves,
         cuts=len(lp.cuts),
         solve_time_s=time.perf_counter() - t0,
-        extra={"levels_hz": [r for r in rates if r not in skipped], "skipped_levels_hz": skipped, "coarse_time_s": coarse_time, "lower_bound_proof": proof, "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K},
+        extra={
+            "levels_hz": [r for r in rates if r not in skipped],
+            "skipped_levels_hz": skipped,
+            "coarse_time_s": coarse_time,
+            "lower_bound_proof": proof,
+            "free_samples": int(level.sols[K].segments.n_free) if K in level.sols else K,
+        },
     )

@@ -135,7 +135,7 @@ def block_states(kd: KData, blocks: list[Block], u: np.ndarray, um: float) -> li
     out = []
     for bi, b in enumerate(blocks):
         gh = kd.blk[bi][1][:, 0]
-        forced = fftconvolve(v, gh[:K])[: K]  # sample k+1: sum_{m<=k} gh_{k-m} v_m
+        forced = fftconvolve(v, gh[:K])[:K]  # sample k+1: sum_{m<=k} gh_{k-m} v_m
         out.append(np.concatenate([[0.0], forced]) + kd.xf[:, b.idx[0]] / b.D[0])
     return out
 

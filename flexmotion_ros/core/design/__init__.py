@@ -10,4 +10,16 @@ from .problem import (
 )
 from .space import PARAMETER_RANGES, DesignParameter, build
 
-__all__ = ["DesignObjective", "DesignParameter", "DesignProblem", "DesignResult", "Evaluation", "PARAMETER_RANGES", "build", "evaluate_point", "optimize_design", "problem_from_parameters", "write_design"]
+__all__ = [
+    "DesignObjective",
+    "DesignParameter",
+    "DesignProblem",
+    "DesignResult",
+    "Evaluation",
+    "PARAMETER_RANGES",
+    "build",
+    "evaluate_point",
+    "optimize_design",
+    "problem_from_parameters",
+    "write_design",
+]

@@ -205,7 +205,9 @@ def optimize_design(
     """
     t0 = time.perf_counter()
     p = len(problem.parameters)
-    sizes = [default_grid(p)] * p if grid is None else ([int(grid)] * p if np.isscalar(grid) else [int(g) for g in grid])
+    sizes = (
+        [default_grid(p)] * p if grid is None else ([int(grid)] * p if np.isscalar(grid) else [int(g) for g in grid])
+    )
     if len(sizes) != p or any(not 3 <= g <= 2001 for g in sizes):
         raise FlexmotionError("grid", f"needs {p} value(s), each in [3, 2001] points, got {sizes}")
     if int(workers) < 1:

@@ -140,7 +140,9 @@ class DesignProblem:
             try:
                 g, w = float(t.gamma), float(t.weight)
             except (TypeError, ValueError):
-                raise GoalError(f"goal[{i}]", f"goal and weight must be numbers, got {t.gamma!r}, {t.weight!r}") from None
+                raise GoalError(
+                    f"goal[{i}]", f"goal and weight must be numbers, got {t.gamma!r}, {t.weight!r}"
+                ) from None
             self.config.check_goal(g)
             if g == 0.0:
                 raise GoalError("goal", "must be non-zero: a zero move takes no time for every design")
@@ -188,7 +190,9 @@ class DesignProblem:
                 build(self.builder, self.base, values)
             except (ModelError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. overflow
                 desc = ", ".join(f"{k}={v:g}" for k, v in values.items())
-                raise FlexmotionError(f"param {self.parameters[0].name}", f"bounds give a non-physical model at {desc}: {exc}") from None
+                raise FlexmotionError(
+                    f"param {self.parameters[0].name}", f"bounds give a non-physical model at {desc}: {exc}"
+                ) from None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -290,7 +294,9 @@ def evaluate_point(problem: DesignProblem, values: Sequence[float]) -> Evaluatio
         status = "not certified"
         objective = math.inf
     residual = worst if problem.robustness is not None else None
-    return Evaluation(values, objective, tuple(times), certified, status, residual, time.perf_counter() - t0, tuple(plans))
+    return Evaluation(
+        values, objective, tuple(times), certified, status, residual, time.perf_counter() - t0, tuple(plans)
+    )
 
 
 def rigid_bound(problem: DesignProblem, values: Sequence[float]) -> float:
@@ -299,7 +305,12 @@ def rigid_bound(problem: DesignProblem, values: Sequence[float]) -> float:
 
     model = build(problem.builder, problem.base, problem.values_dict(values)).model
     u = problem.config.u_max
-    return float(sum(t.weight * rigid_time(model, u, rest_to_rest(model, u, t.gamma).shifted_initial(), True) for t in problem.tasks))
+    return float(
+        sum(
+            t.weight * rigid_time(model, u, rest_to_rest(model, u, t.gamma).shifted_initial(), True)
+            for t in problem.tasks
+        )
+    )
 
 
 def _evaluate_star(args):  # module level: picklable for worker processes
@@ -334,7 +345,9 @@ class DesignObjective:
             import multiprocessing as mp
 
             with mp.get_context("fork").Pool(int(workers)) as pool:
-                evs = pool.map(_evaluate_star, [(self.problem, k) for k in todo], chunksize=max(1, len(todo) // (4 * workers)))
+                evs = pool.map(
+                    _evaluate_star, [(self.problem, k) for k in todo], chunksize=max(1, len(todo) // (4 * workers))
+                )
             for k, ev in zip(todo, evs):
                 self._store(k, ev)
         else:
@@ -394,11 +407,11 @@ def problem_from_parameters(
     if any(k.startswith("model.") for k in planner):
         file_model = config_from_parameters(planner).model
         a, b = file_model.to_dict(), start.model.to_dict()
-        same = all(
-            np.size(a[k]) == np.size(b[k]) and np.allclose(a[k], b[k], rtol=1e-9, atol=1e-12) for k in a
-        )
+        same = all(np.size(a[k]) == np.size(b[k]) and np.allclose(a[k], b[k], rtol=1e-9, atol=1e-12) for k in a)
         if not same:
-            notes.append("the file's model section is not the starting structure (design section / --builder / --set); the structure is used")
+            notes.append(
+                "the file's model section is not the starting structure (design section / --builder / --set); the structure is used"
+            )
     if isinstance(bounds, Mapping):
         bounds = [DesignParameter(n, lo, hi) for n, (lo, hi) in bounds.items()]
     weights = [1.0] * len(goals) if weights is None else list(weights)
@@ -406,4 +419,3 @@ def problem_from_parameters(
         raise GoalError("weight", f"give one weight per goal ({len(goals)}), got {len(weights)}")
     tasks = tuple(Task(g, w) for g, w in zip(goals, weights))
     return DesignProblem(builder, base, tuple(bounds), tasks, config, robustness), notes
-

@@ -41,7 +41,11 @@ PARAMETER_RANGES: dict[str, dict[str, tuple]] = {
 }
 #: Defaults of the optional builder arguments.
 _OPTIONAL = {"two_mass": {"d": 0.0}, "crane": {"g": 9.81, "zeta": 0.0}, "chain": {"dampers": None, "force_on": 0}}
-_REQUIRED = {"two_mass": ("m1", "m2", "k"), "crane": ("cart_mass", "payload_mass", "cable_length"), "chain": ("masses", "springs")}
+_REQUIRED = {
+    "two_mass": ("m1", "m2", "k"),
+    "crane": ("cart_mass", "payload_mass", "cable_length"),
+    "chain": ("masses", "springs"),
+}
 INDEXED_PARAMETER = re.compile(r"^(masses|springs|dampers)\[(\d+)\]$")
 MAX_PARAMETERS = 3
 
@@ -156,7 +160,6 @@ class DesignParameter:
         if self.scale == "log":
             return self.lower * (self.upper / self.lower) ** u
         return self.lower + u * (self.upper - self.lower)
-
 
 
 # --------------------------------------------------------------- parameter files

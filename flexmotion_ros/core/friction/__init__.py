@@ -9,4 +9,13 @@ from .time_optimal import (
 )
 from .zoh import plan_time_optimal_friction_zoh
 
-__all__ = ["Contact", "FrictionCertificate", "FrictionProfile", "FrictionSystem", "check_coulomb_force", "plan_time_optimal_friction", "plan_time_optimal_friction_zoh", "simulate_coulomb"]
+__all__ = [
+    "Contact",
+    "FrictionCertificate",
+    "FrictionProfile",
+    "FrictionSystem",
+    "check_coulomb_force",
+    "plan_time_optimal_friction",
+    "plan_time_optimal_friction_zoh",
+    "simulate_coulomb",
+]

@@ -27,7 +27,6 @@ if TYPE_CHECKING:
     from .extremal import Extremal
 
 
-
 @dataclass
 class FrictionCertificate:
     """Evidence that a bang-bang move under friction is a Pontryagin extremal of the piecewise system.
@@ -139,7 +138,9 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
     Lams = ext.costates(run, lam)
     found, unproved, sig_max, _ = _zeros_detail(ext, y)
     if Lams is None or found is None:
-        return FrictionCertificate(False, math.inf, 0, 0, False, math.inf, lam, CLAIM, "the contact sticks during the move")
+        return FrictionCertificate(
+            False, math.inf, 0, 0, False, math.inf, lam, CLAIM, "the contact sticks during the move"
+        )
     segs = run.segments
     extra = 0
     sign_ok = True
@@ -177,5 +178,6 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
         reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
     if not ham <= HAMILTONIAN_TOL:
         reasons.append(f"Hamiltonian not zero (max |H| = {ham:.2e})")
-    return FrictionCertificate(not reasons, resid, extra, unproved, sign_ok, ham, lam, CLAIM, "; ".join(reasons) or "ok")
-
+    return FrictionCertificate(
+        not reasons, resid, extra, unproved, sign_ok, ham, lam, CLAIM, "; ".join(reasons) or "ok"
+    )

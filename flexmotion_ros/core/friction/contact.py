@@ -167,7 +167,9 @@ class FrictionSystem:
         CA = c.C @ self.A
         self.alpha = float(CA @ c.C) / float(c.C @ c.C)
         # y = C x obeys a scalar ODE when C A = alpha C: closed-form events
-        self.scalar = bool(np.max(np.abs(CA - self.alpha * c.C)) <= 1e-14 * (np.max(np.abs(CA)) + 1e-300)) or not np.any(CA)
+        self.scalar = bool(
+            np.max(np.abs(CA - self.alpha * c.C)) <= 1e-14 * (np.max(np.abs(CA)) + 1e-300)
+        ) or not np.any(CA)
         nz = np.flatnonzero(c.C)
         self.unit = int(nz[0]) if nz.size == 1 and c.C[nz[0]] == 1.0 else None
         self._wmax = {}
@@ -441,7 +443,9 @@ class ClosedForm:
 
 def _affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """``x(h) = Phi x + Gam`` for ``x' = M x + m`` (``m`` a constant vector)."""
-    Phi, Gam = step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
+    Phi, Gam = (
+        step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
+    )
     return Phi, Gam
 
 

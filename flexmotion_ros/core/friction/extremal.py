@@ -147,4 +147,3 @@ class Extremal:
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))
         return rn <= NEWTON_TOL, y, rn
-

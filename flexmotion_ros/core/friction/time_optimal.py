@@ -51,15 +51,20 @@ def check_coulomb_force(coulomb_force, u_max: float) -> float:
     try:
         F = float(coulomb_force)
     except (TypeError, ValueError):
-        raise FlexmotionError("coulomb_force", f"must be a number in [0, u_max) = [0, {u_max:g}) N, got {coulomb_force!r}") from None
+        raise FlexmotionError(
+            "coulomb_force", f"must be a number in [0, u_max) = [0, {u_max:g}) N, got {coulomb_force!r}"
+        ) from None
     if not (math.isfinite(F) and 0.0 <= F < u_max):
         raise FlexmotionError(
-            "coulomb_force", f"must be in [0, u_max) = [0, {u_max:g}) N (at F >= u_max the machine cannot start), got {F}"
+            "coulomb_force",
+            f"must be in [0, u_max) = [0, {u_max:g}) N (at F >= u_max the machine cannot start), got {F}",
         )
     return F
 
 
-def rigid_friction_time(model: ModalModel, u_max: float, coulomb_force: float, x0, target: float | None) -> float | None:
+def rigid_friction_time(
+    model: ModalModel, u_max: float, coulomb_force: float, x0, target: float | None
+) -> float | None:
     """Proved lower bound (s) on any rest-to-rest move under rigid-body friction, or None.
 
     For ``c = 0`` from rest: while ``v > 0`` the acceleration lies in
@@ -74,6 +79,7 @@ def rigid_friction_time(model: ModalModel, u_max: float, coulomb_force: float, x
     a1 = abs(model.b0) * (u_max - coulomb_force)
     a2 = abs(model.b0) * (u_max + coulomb_force)
     return math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+
 
 @dataclass
 class FrictionProfile:
@@ -150,8 +156,6 @@ class FrictionProfile:
         }
 
 
-
-
 def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> FrictionProfile:
     """Bang-bang move to rest under rigid-body Coulomb friction, checked by exact simulation.
 
@@ -183,7 +187,22 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
     lb = rigid_friction_time(model, problem.u_max, F, problem.x0, problem.target)
     if base.duration == 0.0:
         cert = FrictionCertificate(True, 0.0, 0, 0, True, 0.0, np.zeros(model.n_states), "already at rest")
-        return FrictionProfile(problem, F, np.empty(0), base.levels, 0.0, problem.x0.copy(), 0.0, 0.0, np.empty(0), cert, 0.0, lb, 0, time.perf_counter() - t0)
+        return FrictionProfile(
+            problem,
+            F,
+            np.empty(0),
+            base.levels,
+            0.0,
+            problem.x0.copy(),
+            0.0,
+            0.0,
+            np.empty(0),
+            cert,
+            0.0,
+            lb,
+            0,
+            time.perf_counter() - t0,
+        )
     levels = np.asarray(base.levels, float)
     # per-state scale: how large each state gets during the frictionless move
     u0 = base.input()
@@ -262,7 +281,9 @@ def _sigma_scale(ext: Extremal, y: np.ndarray) -> float:
     return max(float(np.max(np.abs(lam))) * float(np.max(np.abs(ext.sys.B))), 1e-300)
 
 
-def _assemble_friction(ext: Extremal, y: np.ndarray, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile:
+def _assemble_friction(
+    ext: Extremal, y: np.ndarray, base: BangBangProfile, lb, steps: int, t0: float
+) -> FrictionProfile:
     problem = ext.problem
     t_sw, T, _lam = ext.unpack(y)
     u = PiecewiseConstant.from_switches(t_sw, ext.levels, T)
@@ -296,4 +317,3 @@ def _assemble_friction(ext: Extremal, y: np.ndarray, base: BangBangProfile, lb, 
         continuation_steps=steps,
         solve_time_s=time.perf_counter() - t0,
     )
-

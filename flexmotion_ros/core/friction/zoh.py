@@ -118,7 +118,11 @@ def _friction_lp(problem: MoveProblem, F: float, K: int, dt: float, s: np.ndarra
 
 
 def plan_time_optimal_friction_zoh(
-    problem: MoveProblem, coulomb_force: float, rate_hz: float, continuous: FrictionProfile | None = None, max_extra: int = 50
+    problem: MoveProblem,
+    coulomb_force: float,
+    rate_hz: float,
+    continuous: FrictionProfile | None = None,
+    max_extra: int = 50,
 ) -> SampledProfile:
     """Zero-order-hold commands at ``rate_hz`` reaching rest exactly under rigid-body friction.
 
@@ -154,7 +158,9 @@ def plan_time_optimal_friction_zoh(
     model, um = problem.model, problem.u_max
     if T == 0.0:
         states = simulate_coulomb(model, problem.x0, PiecewiseConstant([0.0], []), F, [0.0])
-        return SampledProfile(problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, None, time.perf_counter() - t0, "time_optimal_friction")
+        return SampledProfile(
+            problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, None, time.perf_counter() - t0, "time_optimal_friction"
+        )
     if T / dt > 5e6:
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     check = FrictionSystem.for_model(model, F)
@@ -215,4 +221,6 @@ def plan_time_optimal_friction_zoh(
             sp.extra.update({"coulomb_force": F, "peak_command": float(np.max(np.abs(u))), "extra_samples": K - K0})
             return sp
         last_reason = f"exact friction simulation misses the target (relative error {rel:.2e})"
-    raise SolverError(f"sampled friction planner: no sequence within {max_extra} samples of the continuous move ({last_reason})")
+    raise SolverError(
+        f"sampled friction planner: no sequence within {max_extra} samples of the continuous move ({last_reason})"
+    )

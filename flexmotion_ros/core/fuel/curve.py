@@ -99,7 +99,9 @@ def fuel_time_curve(
         check_positive("rate_hz", rate_hz, "Hz")
         s_times, s_fuel = [], []
         for T, p in zip(times, profiles):
-            sp = plan_min_fuel_zoh(problem, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate)
+            sp = plan_min_fuel_zoh(
+                problem, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate
+            )
             s_times.append(sp.duration)
             s_fuel.append(sp.extra["fuel"])
         curve.sampled_move_times = np.array(s_times)

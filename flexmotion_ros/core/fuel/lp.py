@@ -42,7 +42,6 @@ def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
     return float(dt * np.sum(np.abs(commands)))
 
 
-
 def check_move_time(move_time: float, T_star: float) -> float:
     """``move_time`` (s) checked against ``T*``; a value within ``T_STAR_RTOL`` below it is ``T*``."""
     T = float(move_time)
@@ -99,7 +98,9 @@ def _solve_fuel_lp(G, w, dt, um, scale, levels, free) -> _LPResult | None:
     return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
 
 
-def min_fuel_lp(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float, nu_guess: np.ndarray | None = None) -> _LPResult | None:
+def min_fuel_lp(
+    system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float, nu_guess: np.ndarray | None = None
+) -> _LPResult | None:
     """Exact minimum-fuel ZOH sequence with ``K`` samples (samples-to-go order), None if infeasible.
 
     With ``nu_guess`` only windows around its level changes are free; the
@@ -165,10 +166,14 @@ def plan_min_fuel_zoh(
     x0 = problem.shifted_initial()
     um = problem.u_max
     if not np.any(x0):
-        return verified_samples(problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0)
+        return verified_samples(
+            problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0
+        )
     K = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     if K > MAX_SAMPLES:
-        raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate")
+        raise GoalError(
+            "rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate"
+        )
     K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
     sol = None
     K_stop = max(K, K_lo) + 400

@@ -188,9 +188,19 @@ def _initial_costate(problem, system, x0, T, time_optimal) -> np.ndarray:
 def _time_optimal_as_fuel(problem: MoveProblem, to: BangBangProfile, t0: float) -> FuelProfile:
     fuel = problem.u_max * to.duration
     return FuelProfile(
-        problem, to.switch_times.copy(), to.levels.copy(), to.duration, fuel, fuel,
-        -np.asarray(to.certificate.costate_final, float), to.final_state, to.final_state_error,
-        to.final_state_error_relative, 0 if to.certified else 1, 0, time.perf_counter() - t0,
+        problem,
+        to.switch_times.copy(),
+        to.levels.copy(),
+        to.duration,
+        fuel,
+        fuel,
+        -np.asarray(to.certificate.costate_final, float),
+        to.final_state,
+        to.final_state_error,
+        to.final_state_error_relative,
+        0 if to.certified else 1,
+        0,
+        time.perf_counter() - t0,
         extra={"time_optimal": True},
     )
 

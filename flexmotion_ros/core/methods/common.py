@@ -19,7 +19,6 @@ def required_option(config: PlannerConfig, name: str, method: str, allowed: str)
     return config.options[name]
 
 
-
 def float_option(options: dict, name: str, unit: str, low: float, low_text: str) -> float | None:
     if name not in options or options[name] is None:
         return None
@@ -33,12 +32,10 @@ def float_option(options: dict, name: str, unit: str, low: float, low_text: str)
     return x
 
 
-
 def planning_rate(config: PlannerConfig, rate_hz: float | None) -> tuple[float, str]:
     if rate_hz:
         return float(rate_hz), "request"
     return config.rate_hz, "config.rate_hz (no rate given: the node's rate)"
-
 
 
 @dataclass
@@ -79,4 +76,3 @@ class SampledInput:
             "certificate": {"passed": bool(self.certified), "message": self.message},
             "solve_time_s": float(self.sampled.solve_time_s),
         }
-

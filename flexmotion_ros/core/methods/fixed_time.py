@@ -32,6 +32,5 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     return PlanResult("fixed_time", problem, continuous, sampled, info)
 
 
-
 METHOD_NAME = "fixed_time"
 DESCRIPTION = "arrive at rest at arrival_time (s, >= T*) with the least peak force; exact ZOH at rate_hz"

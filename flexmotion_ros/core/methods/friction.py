@@ -20,7 +20,9 @@ from .common import required_option
 
 
 def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
-    raw = required_option(config, "coulomb_force", "time_optimal_friction", f"N, in [0, u_max) = [0, {problem.u_max:g})")
+    raw = required_option(
+        config, "coulomb_force", "time_optimal_friction", f"N, in [0, u_max) = [0, {problem.u_max:g})"
+    )
     F = check_coulomb_force(raw, problem.u_max)
     continuous = plan_time_optimal_friction(problem, F)
     sampled = plan_time_optimal_friction_zoh(problem, F, rate_hz, continuous) if rate_hz else None
@@ -35,9 +37,5 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     return PlanResult("time_optimal_friction", problem, continuous, sampled, info)
 
 
-
-
 METHOD_NAME = "time_optimal_friction"
-DESCRIPTION = (
-    "bang-bang under Coulomb friction on the rigid body (option coulomb_force, N); exact ZOH at rate_hz"
-)
+DESCRIPTION = "bang-bang under Coulomb friction on the rigid body (option coulomb_force, N); exact ZOH at rate_hz"

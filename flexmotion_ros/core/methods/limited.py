@@ -29,14 +29,6 @@ from .common import SampledInput, planning_rate
 LIMIT_OPTIONS = ("limits.velocity_max", "limits.deflection_max", "limits.slew_rate", "limits.report_each")
 
 
-
-
-
-
-
-
-
-
 # ------------------------------------------------------------------- limited
 def limits_from_options(config: PlannerConfig) -> tuple[Limits, bool]:
     """The :class:`Limits` in ``config.options`` (validated) and ``limits.report_each``."""
@@ -48,7 +40,9 @@ def limits_from_options(config: PlannerConfig) -> tuple[Limits, bool]:
     if q is not None and not isinstance(q, (list, tuple)):
         q = [q] if config.model.n_modes == 1 else q
         if not isinstance(q, list):
-            raise ConfigError("limits.deflection_max", f"must be a list with one value > 0 per mode ({config.model.n_modes})")
+            raise ConfigError(
+                "limits.deflection_max", f"must be a list with one value > 0 per mode ({config.model.n_modes})"
+            )
     each = opts.get("limits.report_each", False)
     if not isinstance(each, bool):
         raise ConfigError("limits.report_each", f"must be true or false, got {each!r}")
@@ -69,8 +63,10 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
         info["added_time_by_limit_s"] = by
     elif limits.active:
         info["added_time_by_limit_s"] = {limits.active[0]: result.added_time_s} if len(limits.active) == 1 else {}
-    message = "fewest samples proved (relaxation infeasible below)" if result.minimal else (
-        f"not proved fewest: no sequence below {result.lower_bound_samples} samples"
+    message = (
+        "fewest samples proved (relaxation infeasible below)"
+        if result.minimal
+        else (f"not proved fewest: no sequence below {result.lower_bound_samples} samples")
     )
     cont = SampledInput(result.sampled, "limited", result.minimal, message)
     return PlanResult("limited", problem, cont, result.sampled, info)

@@ -27,9 +27,16 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     T_star = to.duration
     T = float_option(opts, "move_time", " s", T_star * (1.0 - 1e-12), f">= the time-optimal {T_star:.9g}")
     move_time = T if T is not None else DEFAULT_MOVE_TIME_FACTOR * T_star
-    longest = float_option(opts, "fuel_curve.longest_time", " s", T_star * (1.0 - 1e-12), f">= the time-optimal {T_star:.9g}")
+    longest = float_option(
+        opts, "fuel_curve.longest_time", " s", T_star * (1.0 - 1e-12), f">= the time-optimal {T_star:.9g}"
+    )
     points = opts.get("fuel_curve.points", 9)
-    if isinstance(points, bool) or not isinstance(points, (int, float)) or points != int(points) or not 2 <= points <= 1000:
+    if (
+        isinstance(points, bool)
+        or not isinstance(points, (int, float))
+        or points != int(points)
+        or not 2 <= points <= 1000
+    ):
         raise ConfigError("fuel_curve.points", f"must be an integer in [2, 1000], got {points!r}")
     rate, source = planning_rate(config, rate_hz)
     info: dict = {
@@ -61,9 +68,12 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
         except SolverError as exc:
             curve = sampled_fuel_curve(problem, rate, longest, int(points), to).to_dict()
             info["fuel_curve"] = {**curve, "note": f"sampled curve only: {exc}"}
-    cont = continuous if continuous is not None else SampledInput(sampled, "min_fuel", True, "sampled LP optimum (duality gap closed)")
+    cont = (
+        continuous
+        if continuous is not None
+        else SampledInput(sampled, "min_fuel", True, "sampled LP optimum (duality gap closed)")
+    )
     return PlanResult("min_fuel", problem, cont, sampled, info)
-
 
 
 METHOD_NAME = "min_fuel"

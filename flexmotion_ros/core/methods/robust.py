@@ -31,6 +31,7 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     return PlanResult("robust_time_optimal", problem, profile, sampled, info)
 
 
-
 METHOD_NAME = "robust_time_optimal"
-DESCRIPTION = f"time-optimal with zero frequency derivatives of the residual up to robust_order (0..{MAX_ORDER}, default 1)"
+DESCRIPTION = (
+    f"time-optimal with zero frequency derivatives of the residual up to robust_order (0..{MAX_ORDER}, default 1)"
+)

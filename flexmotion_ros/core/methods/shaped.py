@@ -74,13 +74,20 @@ def options(config: PlannerConfig) -> dict:
     except (TypeError, ValueError):
         tol = math.nan
     if not 0.0 < tol < 1.0:
-        raise ConfigError("robustness.tolerance", f"must be in (0, 1) (fraction, 0.05 = 5 %), got {o['robustness.tolerance']!r}")
+        raise ConfigError(
+            "robustness.tolerance", f"must be in (0, 1) (fraction, 0.05 = 5 %), got {o['robustness.tolerance']!r}"
+        )
     o["robustness.tolerance"] = tol
     return o
 
 
-def robustness_info(u: PiecewiseConstant, problem: MoveProblem, time_optimal_duration: float, tol: float,
-                    residual: np.ndarray | None = None) -> dict:
+def robustness_info(
+    u: PiecewiseConstant,
+    problem: MoveProblem,
+    time_optimal_duration: float,
+    tol: float,
+    residual: np.ndarray | None = None,
+) -> dict:
     """Duration, added time and robustness figures of a command (JSON-friendly).
 
     ``residual``: the modes' residual amplitudes if already simulated (else simulated here).
@@ -117,8 +124,9 @@ def _shaper_planner(name: str):
         _check_problem(name, problem)
         t0 = time.perf_counter()
         model = problem.model
-        shaper = design(name, model.omega, model.zeta, o["shaper.tolerance"], o["shaper.negative_amplitude"],
-                        o["shaper.multimode"])
+        shaper = design(
+            name, model.omega, model.zeta, o["shaper.tolerance"], o["shaper.negative_amplitude"], o["shaper.multimode"]
+        )
         profile = plan_shaped(problem, shaper, name)
         plan_time = time.perf_counter() - t0
         nominal = plan_time_optimal(problem)
@@ -127,8 +135,9 @@ def _shaper_planner(name: str):
             lower = max(1, math.ceil(nominal.duration * rate_hz * (1.0 - 1e-12)))
             sampled = sample_command(problem, profile.command, rate_hz, name, profile, lower)
         info = {"plan_time_s": plan_time, "shaper_duration": shaper.duration, "rigid_level": profile.level}
-        info.update(robustness_info(profile.command, problem, nominal.duration, o["robustness.tolerance"],
-                                    profile.residual))
+        info.update(
+            robustness_info(profile.command, problem, nominal.duration, o["robustness.tolerance"], profile.residual)
+        )
         # the shaper's own figure (Singhose's), per mode: independent of the command
         info["shaper_insensitivity_width"] = [
             float(shaper_insensitivity(shaper, o["robustness.tolerance"], i).width) for i in range(len(shaper.omega))
@@ -136,8 +145,6 @@ def _shaper_planner(name: str):
         return PlanResult(name, problem, profile, sampled, info)
 
     return planner
-
-
 
 
 #: One method per shaper: name -> (description, planner).

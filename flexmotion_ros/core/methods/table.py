@@ -77,5 +77,7 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     if result.sampled is not None and result.sampled.commands.size:
         peak = float(np.max(np.abs(result.sampled.commands)))
         if peak > problem.u_max:  # the bound is never exceeded, whatever the method: a planner fault
-            raise SolverError(f"method {config.method} produced |u| = {peak} > u_max = {problem.u_max}; nothing is returned")
+            raise SolverError(
+                f"method {config.method} produced |u| = {peak} > u_max = {problem.u_max}; nothing is returned"
+            )
     return result

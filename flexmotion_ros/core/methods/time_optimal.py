@@ -15,6 +15,5 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     return PlanResult("time_optimal", problem, continuous, sampled)
 
 
-
 METHOD_NAME = "time_optimal"
 DESCRIPTION = "certified time-optimal bang-bang (zero-order hold at rate_hz)"

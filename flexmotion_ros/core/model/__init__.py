@@ -4,4 +4,16 @@ from .boundary import MoveProblem, motion_to_rest, rest_to_rest, state_to_rest
 from .builders import BUILDERS, BuiltModel, chain, crane, two_mass
 from .modal_model import ModalModel, check_positive
 
-__all__ = ["BUILDERS", "BuiltModel", "ModalModel", "MoveProblem", "chain", "check_positive", "crane", "motion_to_rest", "rest_to_rest", "state_to_rest", "two_mass"]
+__all__ = [
+    "BUILDERS",
+    "BuiltModel",
+    "ModalModel",
+    "MoveProblem",
+    "chain",
+    "check_positive",
+    "crane",
+    "motion_to_rest",
+    "rest_to_rest",
+    "state_to_rest",
+    "two_mass",
+]

@@ -12,4 +12,14 @@ from .robust import plan_robust_time_optimal_zoh
 from .sparse_rows import SparseRows
 from .zoh import plan_time_optimal_zoh
 
-__all__ = ["SparseRows", "correct_arrival", "least_norm_correction", "lp_state_scale", "plan_fixed_time_zoh", "plan_robust_time_optimal_zoh", "plan_time_optimal_zoh", "sample_vectors", "verified_samples"]
+__all__ = [
+    "SparseRows",
+    "correct_arrival",
+    "least_norm_correction",
+    "lp_state_scale",
+    "plan_fixed_time_zoh",
+    "plan_robust_time_optimal_zoh",
+    "plan_time_optimal_zoh",
+    "sample_vectors",
+    "verified_samples",
+]

@@ -72,7 +72,9 @@ def verified_samples(
     rel = float(np.max(np.abs(dev) / scale)) if dev.size else 0.0
     peak = float(np.max(np.abs(commands))) if commands.size else 0.0
     if not rel <= FINAL_STATE_RTOL:
-        raise SolverError(f"{method}: sampled sequence misses the target (relative final-state error {rel:.3e}); nothing is returned")
+        raise SolverError(
+            f"{method}: sampled sequence misses the target (relative final-state error {rel:.3e}); nothing is returned"
+        )
     if peak > problem.u_max:
         raise SolverError(f"{method}: sampled command {peak} exceeds u_max = {problem.u_max}; nothing is returned")
     return SampledProfile(

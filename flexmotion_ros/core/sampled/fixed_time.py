@@ -84,6 +84,7 @@ def plan_fixed_time_zoh(
     cmds = u_exact[::-1].copy()
     out = finish_sampled(problem, cmds, dt, continuous, False, fewest.samples, t0)
     out.method = "fixed_time"
-    out.extra.update({"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)})
+    out.extra.update(
+        {"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)}
+    )
     return out
-

@@ -21,7 +21,6 @@ def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
     return system.expm_x_many(dt * np.arange(K), gam)
 
 
-
 # --------------------------------------------------------------------- helpers
 def lp_state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     """How large each (shifted) state gets during a move of length ``T``: the unit of LP variables.
@@ -52,8 +51,9 @@ def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.nda
     return u
 
 
-
-def least_norm_correction(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float, rounds: int = 4) -> np.ndarray | None:
+def least_norm_correction(
+    G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float, rounds: int = 4
+) -> np.ndarray | None:
     """Change ``u`` least (weighted by slack) so that ``G^T u = w``, keeping ``|u| <= u_max``.
 
     ``G``: ``(K, n)``, row ``k`` the final-state effect of sample ``k``.
@@ -75,4 +75,3 @@ def least_norm_correction(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: fl
         if ok.all() and np.max(np.abs(w - G.T @ u)) <= 1e-15 * max(1.0, float(np.max(np.abs(w)))):
             break
     return u
-

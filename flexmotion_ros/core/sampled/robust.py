@@ -18,7 +18,9 @@ from ..tolerances import FINAL_STATE_RTOL
 from .lp_tools import least_norm_correction
 
 
-def plan_robust_time_optimal_zoh(problem: MoveProblem, profile: BangBangProfile, order: int, rate_hz: float) -> SampledProfile:
+def plan_robust_time_optimal_zoh(
+    problem: MoveProblem, profile: BangBangProfile, order: int, rate_hz: float
+) -> SampledProfile:
     """Fewest zero-order-hold samples keeping the robust constraints exactly (nominal model and derivatives).
 
     Samples away from the continuous switches keep the continuous level; a
@@ -56,8 +58,9 @@ def plan_robust_time_optimal_zoh(problem: MoveProblem, profile: BangBangProfile,
             free[K - width :] = True
             F = np.flatnonzero(free)
             rhs = w - G[~free].T @ fixed_level[~free]
-            res = linprog(np.zeros(F.size), A_eq=csr_matrix(G[F].T), b_eq=rhs, bounds=[(-tight, tight)] * F.size,
-                          method="highs")
+            res = linprog(
+                np.zeros(F.size), A_eq=csr_matrix(G[F].T), b_eq=rhs, bounds=[(-tight, tight)] * F.size, method="highs"
+            )
             if res.status == 0 or free.all():
                 break
             width *= 4
@@ -78,8 +81,18 @@ def plan_robust_time_optimal_zoh(problem: MoveProblem, profile: BangBangProfile,
         if problem.target is None:
             dev = dev[1:]
         if rel_aug <= FINAL_STATE_RTOL and np.max(np.abs(cmds)) <= um:
-            return SampledProfile(problem, cmds, dt, states, float(np.max(np.abs(dev))), rel_aug, K == K_lo, K_lo,
-                                  profile, time.perf_counter() - t0, "robust_time_optimal",
-                                  {"augmented_final_state_error_relative": rel_aug})
+            return SampledProfile(
+                problem,
+                cmds,
+                dt,
+                states,
+                float(np.max(np.abs(dev))),
+                rel_aug,
+                K == K_lo,
+                K_lo,
+                profile,
+                time.perf_counter() - t0,
+                "robust_time_optimal",
+                {"augmented_final_state_error_relative": rel_aug},
+            )
     raise SolverError(f"robust time-optimal: no sampled sequence at {rate_hz:g} Hz found; nothing is returned")
-

@@ -59,7 +59,9 @@ class SparseRows:
             md = np.tile(NO_META, (m, 1))
         else:
             kind, k, idx, sgn = meta
-            md = np.column_stack([np.full(m, kind), np.broadcast_to(np.asarray(k, float), (m,)), np.full(m, idx), np.full(m, sgn)])
+            md = np.column_stack(
+                [np.full(m, kind), np.broadcast_to(np.asarray(k, float), (m,)), np.full(m, idx), np.full(m, sgn)]
+            )
         self.meta.append(md)
         self.s.append(np.broadcast_to(np.asarray(s, float), (m,)).copy())
         self.n += m
@@ -74,7 +76,9 @@ class SparseRows:
         """The rows as a CSR matrix with ``ncols`` columns."""
         if not self.v:
             return sparse.csr_matrix((self.n, ncols))
-        return sparse.csr_matrix((np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(self.n, ncols))
+        return sparse.csr_matrix(
+            (np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(self.n, ncols)
+        )
 
     def system(self, ncols: int) -> tuple[sparse.csr_matrix | None, np.ndarray | None]:
         """``(matrix, rhs)`` for ``scipy.optimize.linprog``, ``(None, None)`` without rows."""

@@ -53,8 +53,6 @@ from .lp_tools import sample_vectors
 MAX_EXTRA_SAMPLES = 200
 
 
-
-
 def window_mask(S: np.ndarray, width: int) -> np.ndarray:
     """Samples within ``width`` of a sign change of ``S`` (and the first/last ``width``)."""
     K = S.size
@@ -190,7 +188,9 @@ def correct_exactly(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float) -
     return u
 
 
-def plan_time_optimal_zoh(problem: MoveProblem, rate_hz: float, continuous: BangBangProfile | None = None) -> SampledProfile:
+def plan_time_optimal_zoh(
+    problem: MoveProblem, rate_hz: float, continuous: BangBangProfile | None = None
+) -> SampledProfile:
     """Fewest zero-order-hold samples at ``rate_hz`` that reach rest exactly.
 
     Parameters
@@ -274,12 +274,16 @@ def plan_time_optimal_zoh(problem: MoveProblem, rate_hz: float, continuous: Bang
             for cand in (correct_exactly(G, w, u_in, um), np.clip(u_in, -um, um)):
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
-                    return finish_sampled(problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0)
+                    return finish_sampled(
+                        problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
+                    )
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
         K += 1
-    raise SolverError(f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum")
+    raise SolverError(
+        f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
+    )
 
 
 def finish_sampled(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:

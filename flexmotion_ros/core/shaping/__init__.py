@@ -10,4 +10,18 @@ from .sensitivity import (
 from .shaped_profile import ShapedProfile, plan_shaped, sample_command, shape
 from .shapers import SHAPERS, Shaper, design, multi_mode_direct
 
-__all__ = ["Insensitivity", "SHAPERS", "ShapedProfile", "Shaper", "command_insensitivity", "command_vibration", "design", "multi_mode_direct", "plan_shaped", "residual_amplitudes", "sample_command", "shape", "shaper_insensitivity"]
+__all__ = [
+    "Insensitivity",
+    "SHAPERS",
+    "ShapedProfile",
+    "Shaper",
+    "command_insensitivity",
+    "command_vibration",
+    "design",
+    "multi_mode_direct",
+    "plan_shaped",
+    "residual_amplitudes",
+    "sample_command",
+    "shape",
+    "shaper_insensitivity",
+]

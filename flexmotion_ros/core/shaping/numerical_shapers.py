@@ -86,8 +86,17 @@ class _Design:
     ``x = [free amplitudes, t_2..t_n, free hump ratios, free zero ratios]``.
     """
 
-    def __init__(self, n: int, fixed_amps, hump_at_1: bool, zero_at_1: bool, deriv_at_1: bool,
-                 n_humps: int, n_zeros: int, tol: float) -> None:
+    def __init__(
+        self,
+        n: int,
+        fixed_amps,
+        hump_at_1: bool,
+        zero_at_1: bool,
+        deriv_at_1: bool,
+        n_humps: int,
+        n_zeros: int,
+        tol: float,
+    ) -> None:
         self.n, self.fixed_amps, self.tol = n, fixed_amps, tol
         self.hump_at_1, self.zero_at_1, self.deriv_at_1 = hump_at_1, zero_at_1, deriv_at_1
         self.nh, self.nz = n_humps, n_zeros
@@ -154,9 +163,9 @@ def _solve_continuation(design: _Design, t0, a0, rh0, rz0, zeta: float, name: st
         x_new, info, ier, _ = fsolve(design.equations, x, args=(z,), full_output=True, xtol=1e-14)
         if ier != 1 and np.max(np.abs(info["fvec"])) > CONSTRAINT_TOL:
             raise SolverError(
-            f"shaper {name}: constraints could not be solved at zeta = {z:.3g} (the multi-hump EI "
-            "designs exist for light damping only; use zvd or zvdd for heavily damped modes)"
-        )
+                f"shaper {name}: constraints could not be solved at zeta = {z:.3g} (the multi-hump EI "
+                "designs exist for light damping only; use zvd or zvdd for heavily damped modes)"
+            )
         x = x_new
     # Newton polish to machine precision (finite-difference Jacobian is enough: square, smooth)
     for _ in range(3):
@@ -164,8 +173,9 @@ def _solve_continuation(design: _Design, t0, a0, rh0, rz0, zeta: float, name: st
         if np.max(np.abs(F)) <= 1e-15:
             break
         h = 1e-7
-        J = np.column_stack([(design.equations(x + h * e, zeta) - design.equations(x - h * e, zeta)) / (2 * h)
-                             for e in np.eye(x.size)])
+        J = np.column_stack(
+            [(design.equations(x + h * e, zeta) - design.equations(x - h * e, zeta)) / (2 * h) for e in np.eye(x.size)]
+        )
         x = x - np.linalg.lstsq(J, F, rcond=None)[0]
     F = design.equations(x, zeta)
     a, t, rh, rz = design.unpack(x)
@@ -207,8 +217,9 @@ def ei_unit(zeta: float, V: float, humps: int) -> tuple[np.ndarray, np.ndarray]:
     n_zeros = {1: 2, 2: 2, 3: 4}[humps]
     n_humps = {1: 0, 2: 2, 3: 2}[humps]
     rz0, rh0 = _extrema(t0, a0, 0.0, n_zeros, n_humps)
-    design = _Design(n, None, hump_at_1=humps != 2, zero_at_1=humps == 2, deriv_at_1=False,
-                     n_humps=n_humps, n_zeros=n_zeros, tol=V)
+    design = _Design(
+        n, None, hump_at_1=humps != 2, zero_at_1=humps == 2, deriv_at_1=False, n_humps=n_humps, n_zeros=n_zeros, tol=V
+    )
     a, t, _, rz = _solve_continuation(design, t0, a0, rh0, rz0, zeta, f"ei{humps}")
     # the design is what it claims only if V <= tol between the outer zeros
     r = np.linspace(rz[0], rz[-1], 4001)

@@ -106,14 +106,20 @@ def command_curve(u: PiecewiseConstant, model: ModalModel, ratios, u_ref: float 
     return 100.0 * command_vibration(u, r * np.asarray(model.omega), np.asarray(model.zeta), u_ref)
 
 
-def command_damping_curve(u: PiecewiseConstant, model: ModalModel, zetas, mode: int = 0,
-                          u_ref: float | None = None) -> np.ndarray:
+def command_damping_curve(
+    u: PiecewiseConstant, model: ModalModel, zetas, mode: int = 0, u_ref: float | None = None
+) -> np.ndarray:
     """Command vibration (percent) of one mode versus its damping ratio."""
     return 100.0 * command_vibration(u, model.omega[mode], np.asarray(zetas, dtype=float), u_ref)
 
 
-def insensitivity(vibration: Callable[[np.ndarray], np.ndarray], tolerance: float, nominal: float = 1.0,
-                  span: tuple[float, float] = (0.02, 3.0), step: float = 1e-3) -> Insensitivity:
+def insensitivity(
+    vibration: Callable[[np.ndarray], np.ndarray],
+    tolerance: float,
+    nominal: float = 1.0,
+    span: tuple[float, float] = (0.02, 3.0),
+    step: float = 1e-3,
+) -> Insensitivity:
     """Interval around ``nominal`` where ``vibration(ratio) <= tolerance`` (both fractions).
 
     ``vibration`` maps an array of ratios to vibrations (fractions).  The
@@ -153,21 +159,25 @@ def shaper_insensitivity(shaper: Shaper, tolerance: float = 0.05, mode: int = 0)
     return insensitivity(lambda r: shaper.vibration(shaper.omega[mode] * r, shaper.zeta[mode]), tolerance)
 
 
-def command_insensitivity(u: PiecewiseConstant, model: ModalModel, tolerance: float = 0.05,
-                          u_ref: float | None = None) -> Insensitivity:
+def command_insensitivity(
+    u: PiecewiseConstant, model: ModalModel, tolerance: float = 0.05, u_ref: float | None = None
+) -> Insensitivity:
     """Insensitivity of a command to a common scaling of all modal frequencies (worst mode)."""
     if not model.n_modes:
         return Insensitivity(tolerance, 0.0, np.inf)
 
     def V(r):
-        return np.max(command_vibration(u, np.asarray(r)[:, None] * np.asarray(model.omega),
-                                        np.asarray(model.zeta), u_ref), axis=-1)
+        return np.max(
+            command_vibration(u, np.asarray(r)[:, None] * np.asarray(model.omega), np.asarray(model.zeta), u_ref),
+            axis=-1,
+        )
 
     return insensitivity(V, tolerance)
 
 
-def worst_in_band(u: PiecewiseConstant, model: ModalModel, error: float, u_ref: float | None = None,
-                  points: int = 401) -> float:
+def worst_in_band(
+    u: PiecewiseConstant, model: ModalModel, error: float, u_ref: float | None = None, points: int = 401
+) -> float:
     """Largest command vibration (fraction, worst mode) for frequency ratios in ``[1 - error, 1 + error]``."""
     if not model.n_modes:
         return 0.0

@@ -230,14 +230,29 @@ def plan_shaped(problem: MoveProblem, shaper: Shaper, method: str = "shaped") ->
         raise GoalError("initial_state", "input shaping needs the modes at rest at the start (q = q' = 0)")
     if problem.is_at_rest():  # nothing to do: an empty command
         command = rigid = PiecewiseConstant(np.zeros(1), np.zeros(0))
-        return ShapedProfile(problem, shaper, command, rigid, um, problem.x0.copy(), 0.0, 0.0,
-                             np.zeros(model.n_modes), np.zeros(model.n_modes), time.perf_counter() - t0, method)
+        return ShapedProfile(
+            problem,
+            shaper,
+            command,
+            rigid,
+            um,
+            problem.x0.copy(),
+            0.0,
+            0.0,
+            np.zeros(model.n_modes),
+            np.zeros(model.n_modes),
+            time.perf_counter() - t0,
+            method,
+        )
 
     def shaped_at(lv: float):
         r = rigid_command(problem, lv)
         if r.duration <= 1e-10 * shaper.duration:
-            raise GoalError("goal", f"the move is too small to shape: its {r.duration:.3g} s rigid command "
-                            f"vanishes next to the {shaper.duration:.3g} s shaper in floating point")
+            raise GoalError(
+                "goal",
+                f"the move is too small to shape: its {r.duration:.3g} s rigid command "
+                f"vanishes next to the {shaper.duration:.3g} s shaper in floating point",
+            )
         c = shape(r, shaper)
         return c.max_abs(), (r, c)
 
@@ -263,8 +278,20 @@ def plan_shaped(problem: MoveProblem, shaper: Shaper, method: str = "shaped") ->
     vib = command_vibration(command, w, z, um) if model.n_modes else np.zeros(0)
     if np.any(np.abs(residual - step_amp * vib) > RESIDUAL_RTOL * step_amp):
         raise SolverError("shaped move: simulated residual vibration disagrees with the impulse formula")
-    return ShapedProfile(problem, shaper, command, rigid, level, xT, float(np.max(np.abs(rigid_err))), rel,
-                         residual, 100.0 * vib, time.perf_counter() - t0, method)
+    return ShapedProfile(
+        problem,
+        shaper,
+        command,
+        rigid,
+        level,
+        xT,
+        float(np.max(np.abs(rigid_err))),
+        rel,
+        residual,
+        100.0 * vib,
+        time.perf_counter() - t0,
+        method,
+    )
 
 
 # ----------------------------------------------------------------- sampling
@@ -276,10 +303,14 @@ def sample_average(u: PiecewiseConstant, dt: float, K: int) -> np.ndarray:
     return np.diff(integral) / dt
 
 
-
-
-def sample_command(problem: MoveProblem, u: PiecewiseConstant, rate_hz: float, method: str,
-                   continuous=None, lower_bound_samples: int = 0) -> SampledProfile:
+def sample_command(
+    problem: MoveProblem,
+    u: PiecewiseConstant,
+    rate_hz: float,
+    method: str,
+    continuous=None,
+    lower_bound_samples: int = 0,
+) -> SampledProfile:
     """Zero-order-hold version of ``u`` at ``rate_hz`` reaching rest exactly (nominal model).
 
     Raises
@@ -297,8 +328,9 @@ def sample_command(problem: MoveProblem, u: PiecewiseConstant, rate_hz: float, m
     x0 = problem.shifted_initial()
     if T == 0.0:
         states = simulate_samples(model, problem.x0, np.empty(0), dt)
-        return SampledProfile(problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, continuous,
-                              time.perf_counter() - t0, method)
+        return SampledProfile(
+            problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, continuous, time.perf_counter() - t0, method
+        )
     K0 = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T + dt, 33))), axis=0)
     scale = np.where(scale > 0.0, scale, 1.0)
@@ -320,6 +352,19 @@ def sample_command(problem: MoveProblem, u: PiecewiseConstant, rate_hz: float, m
         s = np.where(s > 0.0, s, 1.0)
         rel = float(np.max(np.abs(dev) / s))
         if rel <= FINAL_STATE_RTOL and np.max(np.abs(cmds)) <= um:
-            return SampledProfile(problem, cmds, dt, states, float(np.max(np.abs(dev))), rel, False,
-                                  lower_bound_samples, continuous, time.perf_counter() - t0, method)
-    raise SolverError(f"{method}: no sampled sequence at {rate_hz:g} Hz reaches rest within the bound; nothing is returned")
+            return SampledProfile(
+                problem,
+                cmds,
+                dt,
+                states,
+                float(np.max(np.abs(dev))),
+                rel,
+                False,
+                lower_bound_samples,
+                continuous,
+                time.perf_counter() - t0,
+                method,
+            )
+    raise SolverError(
+        f"{method}: no sampled sequence at {rate_hz:g} Hz reaches rest within the bound; nothing is returned"
+    )

@@ -116,8 +116,15 @@ class Shaper:
         """The shaper that applies ``self`` then ``other`` (impulses at equal times merged)."""
         t = (self.times[:, None] + other.times[None, :]).ravel()
         a = (self.amplitudes[:, None] * other.amplitudes[None, :]).ravel()
-        return _merged(f"{self.name}*{other.name}", t, a, self.omega + other.omega,
-                       self.zeta + other.zeta, self.exact and other.exact, {**self.params, **other.params})
+        return _merged(
+            f"{self.name}*{other.name}",
+            t,
+            a,
+            self.omega + other.omega,
+            self.zeta + other.zeta,
+            self.exact and other.exact,
+            {**self.params, **other.params},
+        )
 
     def to_dict(self) -> dict:
         """JSON-friendly description."""
@@ -231,8 +238,9 @@ def _check_mode(i: int, w: float, z: float) -> tuple[float, float]:
     return w, z
 
 
-def design(name: str, omega, zeta, tolerance: float = 0.05, negative_amplitude: float = 0.75,
-           multimode: str = "convolve") -> Shaper:
+def design(
+    name: str, omega, zeta, tolerance: float = 0.05, negative_amplitude: float = 0.75, multimode: str = "convolve"
+) -> Shaper:
     """Shaper ``name`` for one or several modes.
 
     Parameters
@@ -332,5 +340,12 @@ def multi_mode_direct(omega, zeta, derivatives: int = 0, points_per_period: int 
         raise SolverError("direct multi-mode shaper: exact amplitudes left the positive orthant")
     name = {0: "zv", 1: "zvd", 2: "zvdd"}[derivatives]
     ts = t[support]
-    return Shaper(name, ts - ts[0], a_s, tuple(float(v) for v in w), tuple(float(v) for v in z), False,
-                  {"multimode": "direct", "grid_step_s": h})
+    return Shaper(
+        name,
+        ts - ts[0],
+        a_s,
+        tuple(float(v) for v in w),
+        tuple(float(v) for v in z),
+        False,
+        {"multimode": "direct", "grid_step_s": h},
+    )

@@ -10,4 +10,12 @@ from .exact import (
 )
 from .modal_response import ModalResponse
 
-__all__ = ["ModalResponse", "PiecewiseConstant", "final_state", "modal_amplitudes", "simulate", "simulate_samples", "step_matrices"]
+__all__ = [
+    "ModalResponse",
+    "PiecewiseConstant",
+    "final_state",
+    "modal_amplitudes",
+    "simulate",
+    "simulate_samples",
+    "step_matrices",
+]

@@ -126,9 +126,7 @@ class ModalResponse:
             E, C, S = self._mode_trig(tau)
             s_wd = self.sig / self.wd
             out[:, self.r :: 2] = self.bm * E * (C - s_wd * S)
-            out[:, self.r + 1 :: 2] = self.bm * E * (
-                -2.0 * self.sig * C + (self.sig**2 - self.wd**2) / self.wd * S
-            )
+            out[:, self.r + 1 :: 2] = self.bm * E * (-2.0 * self.sig * C + (self.sig**2 - self.wd**2) / self.wd * S)
         return out
 
     def input_integral(self, tau: np.ndarray) -> np.ndarray:
@@ -198,7 +196,7 @@ class ModalResponse:
         q = x[self.r :: 2]
         qd = x[self.r + 1 :: 2]
         out[self.r :: 2] = qd
-        out[self.r + 1 :: 2] = -self.w**2 * q - 2.0 * self.sig * qd
+        out[self.r + 1 :: 2] = -(self.w**2) * q - 2.0 * self.sig * qd
         return out
 
     # ---------------------------------------------------- switching function

@@ -7,4 +7,17 @@ from .robust import RobustModalResponse, check_order, plan_robust_time_optimal
 from .solver import plan_time_optimal, solve_bang_bang
 from .switching import find_roots, isolate_roots
 
-__all__ = ["RobustModalResponse", "certify", "check_arrival_time", "check_order", "find_roots", "isolate_roots", "plan_fixed_time", "plan_robust_time_optimal", "plan_time_optimal", "rigid_profile", "rigid_time", "solve_bang_bang"]
+__all__ = [
+    "RobustModalResponse",
+    "certify",
+    "check_arrival_time",
+    "check_order",
+    "find_roots",
+    "isolate_roots",
+    "plan_fixed_time",
+    "plan_robust_time_optimal",
+    "plan_time_optimal",
+    "rigid_profile",
+    "rigid_time",
+    "solve_bang_bang",
+]

@@ -143,14 +143,14 @@ def certify(
     if not sign_ok:
         reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
     if not ham_spread <= HAMILTONIAN_TOL:
-        reasons.append(
-            f"Hamiltonian not constant zero (max |H| = {ham_max:.2e}, relative spread {ham_spread:.2e})"
-        )
+        reasons.append(f"Hamiltonian not constant zero (max |H| = {ham_max:.2e}, relative spread {ham_spread:.2e})")
     passed = not reasons
     gap = T - lower_bound if lower_bound is not None else math.inf
     if not passed and gap <= GAP_RTOL * T:
         passed = True
-        reasons = [f"optimal within {gap:.1e} s: the proved lower bound is {lower_bound!r} s (sign test: {'; '.join(reasons)})"]
+        reasons = [
+            f"optimal within {gap:.1e} s: the proved lower bound is {lower_bound!r} s (sign test: {'; '.join(reasons)})"
+        ]
     return Certificate(
         passed=passed,
         costate_initial=lam_scaled[0],

@@ -49,7 +49,9 @@ def check_arrival_time(arrival_time, T_star: float) -> float:
     try:
         T = float(arrival_time)
     except (TypeError, ValueError):
-        raise FlexmotionError("arrival_time", f"must be a time in [T*, inf) = [{T_star:.9g}, inf) s, got {arrival_time!r}") from None
+        raise FlexmotionError(
+            "arrival_time", f"must be a time in [T*, inf) = [{T_star:.9g}, inf) s, got {arrival_time!r}"
+        ) from None
     if not math.isfinite(T) or T < T_star * (1.0 - SAME_TIME_RTOL):
         raise FlexmotionError(
             "arrival_time",
@@ -95,7 +97,9 @@ def lowest_bound(
     return math.exp(x), prof
 
 
-def _polish(problem: MoveProblem, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, max_iter: int = 30):
+def _polish(
+    problem: MoveProblem, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, max_iter: int = 30
+):
     """Newton on ``(t_1..t_L, u')`` with the duration fixed at ``T``: final state exactly at rest.
 
     ``x(T) = e^{AT} x0 + u' sum_k sign_k (Gamma(T - t_k) - Gamma(T - t_{k+1}))``
@@ -209,7 +213,9 @@ def plan_fixed_time(problem: MoveProblem, arrival_time: float) -> BangBangProfil
         switch_times, bound, _ = _polish(problem, T_req, prof.switch_times * (T_req / prof.duration), signs, bound)
         if bound > problem.u_max:
             if bound > problem.u_max * (1.0 + 1e-9):
-                raise SolverError(f"fixed-time planner needs bound {bound} > u_max = {problem.u_max}; nothing is returned")
+                raise SolverError(
+                    f"fixed-time planner needs bound {bound} > u_max = {problem.u_max}; nothing is returned"
+                )
             bound = problem.u_max
         out = _assemble(problem, T_req, switch_times, signs, bound, prof, T_star, t0)
         if out.certified:
@@ -217,7 +223,9 @@ def plan_fixed_time(problem: MoveProblem, arrival_time: float) -> BangBangProfil
     return out
 
 
-def _assemble(problem, T, switch_times, signs, bound, ref: BangBangProfile, T_star: float, t0: float) -> BangBangProfile:
+def _assemble(
+    problem, T, switch_times, signs, bound, ref: BangBangProfile, T_star: float, t0: float
+) -> BangBangProfile:
     levels = bound * np.asarray(signs, float)
     u = PiecewiseConstant.from_switches(switch_times, levels, T)
     x0s = problem.shifted_initial()
@@ -264,5 +272,3 @@ def _assemble(problem, T, switch_times, signs, bound, ref: BangBangProfile, T_st
             f"fixed-time planner missed the target: relative final-state error {rel:.3e}; nothing is returned"
         )
     return prof
-
-

@@ -90,7 +90,9 @@ def rigid_profile(model: ModalModel, u_max: float, x0: np.ndarray, include_posit
     return RigidProfile(T, switches, levels, _rigid_nu(model, T, switches, levels))
 
 
-def _viscous_solution(c: float, a: float, p: float, v: float, first: float, T: float, t1: float) -> tuple[float, float, float]:
+def _viscous_solution(
+    c: float, a: float, p: float, v: float, first: float, T: float, t1: float
+) -> tuple[float, float, float]:
     """Switch time and duration with viscous damping (``p'' = c p' + a u``, ``c < 0``).
 
     The last arc (level ``s a``) must end at rest at the origin: its velocity

@@ -90,8 +90,9 @@ class RobustModalResponse:
         polynomial factors grow with ``tau``); set before solving/certifying.
     """
 
-    def __init__(self, model: ModalModel, order: int = 1, include_position: bool = True,
-                 horizon: float | None = None) -> None:
+    def __init__(
+        self, model: ModalModel, order: int = 1, include_position: bool = True, horizon: float | None = None
+    ) -> None:
         self.model = model
         self.order = check_order(order)
         self.include_position = include_position
@@ -189,7 +190,9 @@ class RobustModalResponse:
         out[:, : self.r] = self.rigid.expm_B(tau)
         if self.N:
             E = self._E(tau)
-            self._fill(out, [self.cq * d for d in self._D(-1, tau, E)], [self.cq * self.mu * d for d in self._D(0, tau, E)])
+            self._fill(
+                out, [self.cq * d for d in self._D(-1, tau, E)], [self.cq * self.mu * d for d in self._D(0, tau, E)]
+            )
         return out
 
     def A_expm_B(self, tau) -> np.ndarray:
@@ -266,8 +269,10 @@ class RobustModalResponse:
             aqd = nu[cols + 1] * self.cq * self.mu ** (m + 1)  # times d^j(omega^m e)
             for l in range(j + 1):
                 p = j - l
-                coef[p] += math.comb(j, l) * self.mu**p * (
-                    aq * _ff(m - 1, l) * self.w ** (m - 1 - l) + aqd * _ff(m, l) * self.w ** (m - l)
+                coef[p] += (
+                    math.comb(j, l)
+                    * self.mu**p
+                    * (aq * _ff(m - 1, l) * self.w ** (m - 1 - l) + aqd * _ff(m, l) * self.w ** (m - l))
                 )
         return coef
 
@@ -320,7 +325,9 @@ class RobustModalResponse:
 
 
 # ------------------------------------------------------------------ planner
-def plan_robust_time_optimal(problem: MoveProblem, order: int = 1, nominal: BangBangProfile | None = None) -> BangBangProfile:
+def plan_robust_time_optimal(
+    problem: MoveProblem, order: int = 1, nominal: BangBangProfile | None = None
+) -> BangBangProfile:
     """Time-optimal bang-bang move whose residual has zero frequency derivatives up to ``order``.
 
     Parameters
@@ -392,5 +399,3 @@ def plan_robust_time_optimal(problem: MoveProblem, order: int = 1, nominal: Bang
             "time_optimal_duration": float(T_low),
         },
     )
-
-

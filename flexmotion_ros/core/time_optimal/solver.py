@@ -207,6 +207,7 @@ def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: 
     switch_times = np.clip(np.sort(T - roots), 0.0, T)
     return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
 
+
 def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
     """Time-optimal bang-bang input for a move to rest, with certificate.
 

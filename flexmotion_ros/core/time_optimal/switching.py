@@ -68,7 +68,11 @@ def refine_roots(
     ``16 eps fscale`` (rounding noise of ``f``: pass the magnitude of its
     terms) counts as zero.
     """
-    noise = 16.0 * np.finfo(float).eps * (fscale if fscale is not None else float(np.max(np.abs(np.concatenate([fa, fb])), initial=0.0)))
+    noise = (
+        16.0
+        * np.finfo(float).eps
+        * (fscale if fscale is not None else float(np.max(np.abs(np.concatenate([fa, fb])), initial=0.0)))
+    )
     a = a.copy()
     b = b.copy()
     fa = fa.copy()
@@ -249,7 +253,12 @@ def _hermite_root(a, b, fa, fb, da, db) -> np.ndarray:
         for _ in range(4):
             x2, x3 = x * x, x * x * x
             p = (2 * x3 - 3 * x2 + 1) * fa + (x3 - 2 * x2 + x) * h * da + (-2 * x3 + 3 * x2) * fb + (x3 - x2) * h * db
-            dp = (6 * x2 - 6 * x) * fa + (3 * x2 - 4 * x + 1) * h * da + (-6 * x2 + 6 * x) * fb + (3 * x2 - 2 * x) * h * db
+            dp = (
+                (6 * x2 - 6 * x) * fa
+                + (3 * x2 - 4 * x + 1) * h * da
+                + (-6 * x2 + 6 * x) * fb
+                + (3 * x2 - 2 * x) * h * db
+            )
             x = np.clip(x - p / dp, 0.0, 1.0)
     x = np.where(np.isfinite(x), x, 0.5)
     return a + x * h
@@ -279,4 +288,3 @@ def root_tolerance(system, nu: np.ndarray, T: float, roots: np.ndarray, rtol: fl
     noise = 1e3 * np.finfo(float).eps * mag0
     with np.errstate(divide="ignore"):
         return np.maximum(rtol * T, noise / np.abs(dS))
-
