@@ -1,6 +1,6 @@
 # Two commands do all the set-up on a fresh machine with Python 3.11:
 #   make demo   # closed-loop demo (planner + plant over ROS 2), summary + plot
-#   make test   # the whole test suite (what CI runs: .ci/run)
+#   make test   # the whole test suite and the linter (what CI runs: .ci/run)
 # Both create .venv on first use and install the package with ROS 2 Jazzy
 # from PyPI (the 'ros' extra), test tools and benchmark peers.
 
@@ -22,12 +22,15 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q
+	$(PY) -m ruff check .
+	$(PY) -m ruff format --check .
 
 bench: $(STAMP)
 	$(PY) bench/planner_latency.py
 
 lint: $(STAMP)
-	$(PY) -m ruff check flexmotion_ros test bench
+	$(PY) -m ruff check .
+	$(PY) -m ruff format --check .
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache
