@@ -5,7 +5,7 @@ Nothing here calls the planner: closed-form rigid-body minimum times
 OUR matrix-exponential simulation relative to the move's scale, the sign of the
 certificate's switching function on a dense grid, and optimality proofs by weak
 duality (:func:`lower_bound_gap`, :func:`proved_optimality`).  Used by
-``test_properties_time_optimal`` and ``test_time_optimal_rigid_body`` (which also
+``test_solver_properties`` and ``test_rigid_body`` (which also
 checks :func:`rigid_min_time` against the textbook formula).
 """
 

@@ -27,7 +27,7 @@ from flexmotion_ros.core.config import (
 )
 from flexmotion_ros.core.errors import ConfigError
 
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "config"
 MODEL = ModalModel(b0=0.5, c=-0.125, omega=(1.4142135623730951, 7.0), zeta=(0.0, 0.03), b=(1.0, -2.0))
 
 

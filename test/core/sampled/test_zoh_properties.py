@@ -14,7 +14,7 @@ here independently of the planner:
   of its dual vector;
 * ``K dt >= T*`` (a sampled input is an admissible continuous one).
 
-Models: as in ``test_properties_time_optimal`` (up to 4 modes, separation 5 %),
+Models: as in ``test_solver_properties`` (up to 4 modes, separation 5 %),
 with every mode below 0.9 of the Nyquist frequency of the drawn rate
 (``omega_d dt < 0.9 pi``; at ``omega_d dt = k pi`` the sampled system loses
 controllability).  If a long move would need more than ``K_MAX`` samples at
@@ -33,19 +33,6 @@ from hypothesis import strategies as st
 from reference_solutions import deviation_from_target
 from scipy.linalg import expm
 from scipy.optimize import linprog
-from test_properties_time_optimal import (
-    FINAL_RTOL,
-    SETTINGS,
-    WB,
-    describe,
-    log_uniform,
-    models,
-    natural_velocity,
-    negligible,
-    safe_note,
-    signs,
-    units,
-)
 
 from flexmotion_ros.core import (
     ModalModel,
@@ -57,6 +44,20 @@ from flexmotion_ros.core import (
     rest_to_rest,
     simulate_samples,
     state_to_rest,
+)
+
+from ..time_optimal.test_solver_properties import (
+    FINAL_RTOL,
+    SETTINGS,
+    WB,
+    describe,
+    log_uniform,
+    models,
+    natural_velocity,
+    negligible,
+    safe_note,
+    signs,
+    units,
 )
 
 K_MAX = 500

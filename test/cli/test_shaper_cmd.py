@@ -12,7 +12,7 @@ from flexmotion_ros.core import load_config, rest_to_rest, simulate_samples
 from flexmotion_ros.core.methods import METHODS, plan_move
 from flexmotion_ros.core.shaping.shapers import SHAPERS
 
-WB_FILE = str(Path(__file__).resolve().parent.parent / "config" / "wie_bernstein.yaml")
+WB_FILE = str(Path(__file__).resolve().parents[2] / "config" / "wie_bernstein.yaml")
 WB_TEXT = Path(WB_FILE).read_text()
 
 

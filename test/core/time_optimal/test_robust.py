@@ -137,7 +137,7 @@ def test_derivative_constraint_by_finite_differences_of_the_nominal_model():
 
 
 def test_three_mode_beam_and_motion_to_rest():
-    cfg = load_config(Path(__file__).resolve().parent.parent / "config" / "flexible_beam_3mode.yaml")
+    cfg = load_config(Path(__file__).resolve().parents[3] / "config" / "flexible_beam_3mode.yaml")
     p = plan_robust_time_optimal(rest_to_rest(cfg.model, cfg.u_max, 0.05), 1)
     assert p.certified, p.certificate.message
     assert p.duration > p.extra["time_optimal_duration"]

@@ -25,7 +25,7 @@ from flexmotion_ros.core import (
     simulate_samples,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WB_CONFIG = ROOT / "config" / "wie_bernstein.yaml"
 WB = ModalModel(b0=0.5, omega=(math.sqrt(2.0),), zeta=(0.0,), b=(1.0,))
 ONE_LINE_PREFIX = "flexmotion: error: "

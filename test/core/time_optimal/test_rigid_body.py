@@ -4,7 +4,7 @@ A rigid body ``p'' = c p' + b0 u`` stops in at most one switch; its minimum time
 known in closed form (the textbook double integrator for ``c = 0``; for ``c < 0`` the
 independent :func:`reference_solutions.rigid_min_time`, itself checked here against
 the textbook formula and our own simulation).  Every plan also passes all the checks
-of :func:`test_properties_time_optimal.plan_and_check`.
+of :func:`test_solver_properties.plan_and_check`.
 """
 
 from __future__ import annotations
@@ -17,13 +17,6 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from reference_solutions import closed_form_double_integrator, rigid_min_time
 from scipy.optimize import brentq
-from test_properties_time_optimal import (
-    SETTINGS,
-    log_uniform,
-    plan_and_check,
-    signs,
-    units,
-)
 
 from flexmotion_ros.core import (
     ModalModel,
@@ -32,6 +25,14 @@ from flexmotion_ros.core import (
     motion_to_rest,
     rest_to_rest,
     state_to_rest,
+)
+
+from .test_solver_properties import (
+    SETTINGS,
+    log_uniform,
+    plan_and_check,
+    signs,
+    units,
 )
 
 

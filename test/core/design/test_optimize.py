@@ -50,7 +50,7 @@ from flexmotion_ros.core.errors import FlexmotionError, SolverError
 
 WB = ModalModel(b0=0.5, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
 CFG = PlannerConfig(model=WB)
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+CONFIG_DIR = Path(__file__).resolve().parents[3] / "config"
 CONFIG_FILE = str(CONFIG_DIR / "design_two_mass.yaml")
 
 

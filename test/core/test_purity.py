@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-CORE = Path(__file__).resolve().parents[1] / "flexmotion_ros" / "core"
+CORE = Path(__file__).resolve().parents[2] / "flexmotion_ros" / "core"
 ROS_PACKAGES = (
     "rclpy",
     "rcl_interfaces",

@@ -27,7 +27,7 @@ from flexmotion_ros.core.sampled.fixed_time import plan_fixed_time_zoh
 from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def at_rest_error(problem, prof):
