@@ -3,8 +3,8 @@
 The rules of ``docs/architecture.md``: no import cycle (between modules, and
 between the core's subpackages), no import of another module's ``_private``
 name, no dynamic import anywhere in the package, and the numerical core never
-imports ROS, message packages, matplotlib, the nodes, the command line or the
-plots.  Each rule is also shown to catch a violation (the ``*_is_caught``
+imports ROS, message packages, matplotlib, the nodes, the command line, the
+plots or ``execution`` (which, ROS-free too, may import only the core).  Each rule is also shown to catch a violation (the ``*_is_caught``
 tests), so none of them can pass vacuously.
 """
 
@@ -18,6 +18,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "flexmotion_ros"
 CORE = f"{PACKAGE}.core"
+EXECUTION = f"{PACKAGE}.execution"
 FORBIDDEN_IN_CORE = ("rclpy", "matplotlib", f"{PACKAGE}.nodes", f"{PACKAGE}.cli", f"{PACKAGE}.plots")
 MESSAGE_SUFFIXES = ("_msgs", "_srvs", "_interfaces")
 
@@ -122,13 +123,17 @@ def private_imports(g) -> list[str]:
 
 
 def forbidden_core_imports(g) -> list[str]:
+    """Imports the ROS-free layers may not make: the core none of the list, ``execution`` none but the core."""
     bad = []
     for m, imps in g.items():
-        if not (m == CORE or m.startswith(CORE + ".")):
+        in_core = m == CORE or m.startswith(CORE + ".")
+        in_execution = m == EXECUTION or m.startswith(EXECUTION + ".")
+        if not (in_core or in_execution):
             continue
+        forbidden = FORBIDDEN_IN_CORE + ((EXECUTION,) if in_core else ())
         for t, _ in imps:
             top = t.split(".")[0]
-            if t.startswith(FORBIDDEN_IN_CORE) or top.endswith(MESSAGE_SUFFIXES) or top in ("importlib",):
+            if t.startswith(forbidden) or top.endswith(MESSAGE_SUFFIXES) or top in ("importlib",):
                 bad.append(f"{m} imports {t}")
     return bad
 
@@ -183,7 +188,7 @@ def test_no_private_name_is_imported_across_modules():
     assert private_imports(GRAPH) == []
 
 
-def test_the_core_imports_no_ros_messages_plots_nodes_or_cli():
+def test_the_ros_free_layers_import_no_ros_messages_plots_nodes_or_cli():
     assert forbidden_core_imports(GRAPH) == []
 
 
@@ -246,6 +251,13 @@ def test_a_private_import_is_caught(tmp_path):
 def test_a_forbidden_core_import_is_caught(tmp_path, line):
     files = _fake(tmp_path, {"core/a.py": "def f():\n    " + line})
     assert forbidden_core_imports(graph(files))
+
+
+def test_execution_may_import_the_core_but_not_ros_and_the_core_not_execution(tmp_path):
+    ok = _fake(tmp_path / "ok", {"execution/a.py": "from ..core.b import x\n", "core/b.py": "x = 1\n"})
+    assert forbidden_core_imports(graph(ok)) == []
+    bad = _fake(tmp_path / "bad", {"execution/a.py": "import rclpy\n", "core/b.py": "from ..execution.a import y\n"})
+    assert len(forbidden_core_imports(graph(bad))) == 2
 
 
 def test_a_dynamic_import_is_caught(tmp_path):

@@ -1,12 +1,14 @@
 """ROS 2 adapters (rclpy): the planner and the simulated plant.
 
 The nodes hold no math: every plan comes from
-:func:`flexmotion_ros.core.planning.plan_move` and every simulation step from
-:mod:`flexmotion_ros.core.simulation`.  One module per concept:
+:func:`flexmotion_ros.core.methods.plan_move`, every simulation step from
+:mod:`flexmotion_ros.core.simulation`, and the command stream and the splice of
+a new plan into a running one from the ROS-free :mod:`flexmotion_ros.execution`.
+One module per concept:
 
 * :mod:`.parameters` -- parameter descriptors and their map to the core's
   :func:`~flexmotion_ros.core.config.config_from_parameters`;
-* :mod:`.streaming` -- the fixed-rate, absolute-deadline command loop;
+* :mod:`.planner_status` -- the ``/diagnostics`` status thread;
 * :mod:`.messages` -- conversions to and from standard messages;
 * :mod:`.planner_node` -- ``flexmotion_planner`` (``ros2 run flexmotion_ros planner``);
 * :mod:`.plant_node` -- ``flexmotion_plant`` (``ros2 run flexmotion_ros plant``).

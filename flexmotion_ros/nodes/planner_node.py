@@ -22,7 +22,7 @@ Interfaces (standard types only)
     position is free.
 ``commands`` (std_msgs/Float64MultiArray, one element)
     The exact zero-order-hold plan at ``rate_hz`` from an absolute-deadline
-    thread (:mod:`.streaming`); one explicit hold sample (0) ends each move;
+    thread (:class:`~flexmotion_ros.execution.CommandStream`); one explicit hold sample (0) ends each move;
     ``publish_hold_when_idle`` keeps the hold going while idle.
 ``~/planned_trajectory`` (trajectory_msgs/JointTrajectory, transient local)
     Predicted position, velocity and command per sample (:mod:`.messages`).
@@ -37,7 +37,8 @@ time (``replan_lead_s``, at least 1.5 x the slowest recent plan + 20 ms); the
 new sequence is spliced in at ``k_s``.  If planning overran (``k_s`` already
 sent), it is planned again from a later sample.  Commands before and after
 the splice are both within ``|u| <= u_max``, so the command never jumps by
-more than ``2 u_max``.
+more than ``2 u_max``.  The splice point and the look-ahead policy are
+:mod:`flexmotion_ros.execution.splice`; this node only plans and logs.
 
 The planner is open loop: it predicts the machine's state from its own
 plans (it does not read ``joint_states``).
@@ -50,7 +51,6 @@ the node keeps serving.
 from __future__ import annotations
 
 import gc
-import math
 import sys
 import threading
 import time
@@ -69,10 +69,21 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from ..core.config import PlannerConfig
-from ..core.errors import FlexmotionError, GoalError, SolverError
+from ..core.errors import FlexmotionError, SolverError
 from ..core.methods.table import plan_move
 from ..core.model.boundary import state_to_rest
 from ..core.results import PlanResult
+from ..execution import (
+    PLAN_TIME_WINDOW,
+    SPLICE_ATTEMPTS,
+    CommandStream,
+    Segment,
+    ended_at_rest,
+    lead_samples,
+    longer_lead,
+    plan_summary,
+    splice_point,
+)
 from . import messages
 from .parameters import (
     PLANNER_NODE_ONLY,
@@ -85,11 +96,8 @@ from .parameters import (
 )
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .runner import run
-from .streaming import CommandStream, Segment
 
 NODE_NAME = "flexmotion_planner"
-#: Attempts to splice a preemption before giving up (the look-ahead doubles each time).
-SPLICE_ATTEMPTS = 4
 
 #: ``commands``: reliable and deep (10 s at 1 kHz), so that a lagging lockstep plant never loses a sample.
 COMMAND_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -175,7 +183,7 @@ class PlannerNode(Node):
         sys.setswitchinterval(min(self._switch_interval, max(5e-5, 0.2 / rate)))
 
         self._plan_lock = threading.Lock()  # one plan at a time: the timeline stays consistent
-        self._plan_times: deque[float] = deque(maxlen=5)
+        self._plan_times: deque[float] = deque(maxlen=PLAN_TIME_WINDOW)
         self._sent_at_start = 0
         self._move_requested_at = 0.0
         #: Recently installed segments, oldest first (start index, plan): for tests and the demo.
@@ -338,9 +346,7 @@ class PlannerNode(Node):
         return Outcome(False, reason)
 
     def _lead_samples(self) -> int:
-        slowest = max(self._plan_times) if self._plan_times else 0.2
-        lead_s = max(self._replan_lead_s, 1.5 * slowest + 0.02)
-        return max(1, math.ceil(lead_s * self._config.rate_hz))
+        return lead_samples(self._plan_times, self._replan_lead_s, self._config.rate_hz)
 
     def _plan_locked(self, target: float | None, execute: bool, source: str, t_req: float) -> Outcome:
         config = self._config
@@ -350,20 +356,14 @@ class PlannerNode(Node):
         lead = self._lead_samples()
         for _attempt in range(SPLICE_ATTEMPTS):
             k_next, timeline = self.stream.snapshot()
-            if not timeline:
+            point = splice_point(timeline, k_next, lead, model.n_modes)  # None: idle
+            if point is None:
                 if target is None:
                     return Outcome(True, f"already at rest at {self._position:.9g}")
                 at = None
                 x0 = model.rest_state(self._position)
             else:
-                at = k_next + lead
-                x0 = self.stream.predicted_state(at, timeline)
-                if x0.size != model.n_states:
-                    raise GoalError(
-                        "model",
-                        f"the number of modes changed during a move ({(x0.size - 2) // 2} -> {model.n_modes}): "
-                        "stop or wait until idle, then send the goal again",
-                    )
+                at, x0 = point.sample, point.state
             problem = state_to_rest(model, config.u_max, x0, target)
             t0 = time.perf_counter()
             result = plan_move(config, problem, config.rate_hz)
@@ -374,7 +374,7 @@ class PlannerNode(Node):
                 raise SolverError(f"method {config.method} returned no sampled command sequence")
             record = MoveRecord(result, target, source, t_req, at is None, plan_time)
             seg = Segment(np.asarray(sampled.commands, float), np.asarray(sampled.states, float), info=record)
-            info = self._plan_info(result, plan_time)
+            info = plan_summary(result, plan_time)
             if not execute:
                 k0 = k_next if at is None else at
                 return Outcome(True, "", seg, self._ros_time_of(k0), info)
@@ -382,12 +382,12 @@ class PlannerNode(Node):
                 return Outcome(True, f"already at {self._position:.9g}", None, self._ros_time_of(k_next), info)
             if at is None or not self.stream.splice(seg, at):
                 # the timeline ran out while planning: valid from rest only if x0 was the rest at its end
-                ended_at_rest = at is None or (at >= timeline[-1].end and self.stream.idle)
-                if not ended_at_rest:  # overran the look-ahead: plan again from a later sample
+                if at is not None and not ended_at_rest(timeline, at, self.stream.idle):
+                    # overran the look-ahead: plan again from a later sample
                     self.get_logger().warning(
                         f"{source}: planning took {plan_time * 1e3:.0f} ms, beyond the {lead} sample look-ahead; replanning"
                     )
-                    lead *= 2
+                    lead = longer_lead(lead)
                     continue
                 self._move_requested_at = t_req
                 seg.info.from_idle = True
@@ -397,22 +397,6 @@ class PlannerNode(Node):
         raise SolverError(
             f"planning overran its look-ahead {SPLICE_ATTEMPTS} times (last {lead} samples); the move continues unchanged"
         )
-
-    def _plan_info(self, result: PlanResult, plan_time: float) -> dict[str, Any]:
-        s = result.sampled
-        cont = result.continuous
-        certified = getattr(cont, "certified", None)
-        return {
-            "method": result.method,
-            "duration_s": float(s.duration),
-            "samples": int(s.samples),
-            "minimal": bool(s.minimal),
-            "certified": "n/a" if certified is None else bool(certified),
-            "continuous_duration_s": float(cont.duration) if cont is not None else float("nan"),
-            "final_state_error": float(s.final_state_error),
-            "plan_time_s": float(plan_time),
-            "peak_command": float(np.max(np.abs(s.commands))) if s.samples else 0.0,
-        }
 
     def _installed(self, seg: Segment, target: float | None, info: dict, source: str) -> None:
         self.installed.append(seg)
@@ -445,9 +429,7 @@ class PlannerNode(Node):
             self._status.first_command(seg.started_at - rec.requested_at)
 
     def _on_move_finished(self, seg: Segment) -> None:
-        n = self.stream.samples_sent - self._sent_at_start
-        times = np.array(list(self.stream.sent_times)[-n:]) if n > 1 else np.empty(0)
-        late = np.array(list(self.stream.lateness)[-n:]) if n > 1 else np.empty(0)
+        times, late = self.stream.recent_timing(self.stream.samples_sent - self._sent_at_start)
         self._status.finished(times, late)
         self.get_logger().info(f"move finished, at rest at {self._position:.9g}")
         self.publish_diagnostics()

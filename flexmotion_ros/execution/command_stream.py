@@ -1,18 +1,23 @@
-"""The fixed-rate command stream: a dedicated thread with absolute deadlines.
+"""The fixed-rate command stream: absolute deadlines, no sample ever skipped.
 
 Sample ``k`` is due at ``t_anchor + (k - k_anchor) / rate_hz`` on the
-monotonic clock, so lateness never accumulates (no drift); a late sample is
+stream's clock, so lateness never accumulates (no drift); a late sample is
 sent at once and none is ever skipped (a lockstep plant counts them).
 
-The stream plays a *timeline*: a queue of :class:`Segment` s, each a planned
-command sequence starting at a global sample index.  Preemption inserts a
-segment at a future index (a *splice*); the segments before it keep playing
-until then, so the state the new plan started from is exactly the state the
-machine is predicted to reach there.  After the last command of a move the
-stream sends one explicit hold sample (``HOLD = 0``: the targets are
+The stream plays a *timeline* (:mod:`.timeline`): a queue of
+:class:`~.timeline.Segment` s, each a planned command sequence starting at a
+global sample index.  Preemption inserts a segment at a future index (a
+*splice*, :mod:`.splice`); the segments before it keep playing until then,
+so the state the new plan started from is exactly the state the machine is
+predicted to reach there.  After the last command of a move the stream sends
+one explicit hold sample (:data:`~.timeline.HOLD`: the targets are
 equilibria, no force is needed at rest); while idle it either keeps sending
 the hold at the rate (``hold_when_idle``) or sends nothing and sleeps until
 the next move, which then starts on the next sample.
+
+The clock, the sleep and the "publish one sample" callable are injected:
+:meth:`CommandStream.start` runs :meth:`CommandStream.step` in a dedicated
+thread; a test calls :meth:`~CommandStream.step` itself with a fake clock.
 """
 
 from __future__ import annotations
@@ -22,63 +27,46 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
-#: Command while at rest (N): every target is an equilibrium (A x_f = 0).
-HOLD = 0.0
+from .timeline import HOLD, Segment, predicted_state
 
 
-@dataclass
-class Segment:
-    """A planned command sequence on the stream's timeline.
+@dataclass(frozen=True, kw_only=True)
+class StreamStep:
+    """What one step of the stream did.
 
     Attributes
     ----------
-    commands : ndarray
-        ``u_i`` for ``i = 0..K-1`` (N), each sent for one sample period.
-    states : ndarray
-        Predicted states before each command and after the last (``K + 1`` rows).
-    start : int
-        Global sample index of ``commands[0]`` (set when installed).
-    info : Any
-        The caller's record (the plan).
+    sample : int
+        Global sample index (samples).
+    deadline : float
+        When it was due (clock s).
+    time : float
+        When it was handled, after the sleep (clock s).
+    value : float or None
+        The command published (N); None if nothing was sent (idle, silent).
     """
 
-    commands: np.ndarray
-    states: np.ndarray
-    start: int = -1
-    info: Any = None
-    started_at: float | None = field(default=None, repr=False)
-
-    @property
-    def samples(self) -> int:
-        return int(self.commands.size)
-
-    @property
-    def end(self) -> int:
-        """Global index of the explicit hold sample after the last command."""
-        return self.start + self.samples
-
-    def state_at(self, k: int) -> np.ndarray:
-        """Predicted state at global sample ``k`` (at rest after the end)."""
-        i = min(max(k - self.start, 0), self.samples)
-        return self.states[i]
+    sample: int
+    deadline: float
+    time: float
+    value: float | None
 
 
 class CommandStream:
-    """Publish one command per period from a dedicated thread.
+    """Publish one command per period, at absolute deadlines.
 
     Parameters
     ----------
     rate_hz : float
         Samples per second (Hz).
     publish : callable
-        ``publish(value)``; called from the stream thread.
+        ``publish(value)`` sends one sample (N); called from the stream thread.
     hold_when_idle : bool
-        Keep sending :data:`HOLD` while idle.
+        Keep sending :data:`~.timeline.HOLD` while idle.
     on_start, on_finish : callable, optional
         ``f(segment)`` when a segment sends its first command / when the
         timeline runs out (after the explicit hold).  Called from the stream thread.
@@ -91,6 +79,8 @@ class CommandStream:
         ``CAP_SYS_NICE`` or an rtprio limit), so that a loaded machine does not
         delay its wake-ups; 0: normal scheduling.  If refused, the stream runs
         normally and :attr:`priority_error` says why.
+    sleep : callable
+        ``sleep(seconds)`` on the same time base as ``clock``.
     """
 
     def __init__(
@@ -103,6 +93,7 @@ class CommandStream:
         clock: Callable[[], float] = time.monotonic,
         record: int = 200_000,
         priority: int = 0,
+        sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.dt = 1.0 / float(rate_hz)
         self._publish = publish
@@ -110,10 +101,11 @@ class CommandStream:
         self._on_start = on_start
         self._on_finish = on_finish
         self._clock = clock
+        self._sleep = sleep
         self._cond = threading.Condition()
         self._queue: list[Segment] = []
         self._k_next = 0
-        self._t_anchor = 0.0
+        self._t_anchor = clock()  # start() re-anchors: sample 0 is due when the stream starts
         self._k_anchor = 0
         self._stop = False
         self._thread: threading.Thread | None = None
@@ -144,6 +136,7 @@ class CommandStream:
 
     @property
     def hold_when_idle(self) -> bool:
+        """Keep sending the hold while idle."""
         return self._hold_when_idle
 
     @hold_when_idle.setter
@@ -155,29 +148,24 @@ class CommandStream:
 
     # ----------------------------------------------------------------- timeline
     def snapshot(self) -> tuple[int, list[Segment]]:
-        """``(k_next, segments)``: the next index to send and the queued timeline."""
+        """``(k_next, segments)``: the next index to send (samples) and the queued timeline."""
         with self._cond:
             return self._k_next, list(self._queue)
 
     @property
     def idle(self) -> bool:
+        """No segment is queued."""
         with self._cond:
             return not self._queue
 
     def predicted_state(self, k: int, segments: list[Segment] | None = None) -> np.ndarray | None:
-        """The state the timeline reaches at sample ``k`` (None if idle)."""
+        """The state the timeline (default: the queued one) reaches at sample ``k`` (None if idle)."""
         if segments is None:
             _, segments = self.snapshot()
-        if not segments:
-            return None
-        seg = segments[0]
-        for s in segments[1:]:
-            if s.start <= k:
-                seg = s
-        return seg.state_at(k)
+        return predicted_state(segments, k)
 
     def start_now(self, segment: Segment) -> int:
-        """Start ``segment`` on the next sample of an idle stream; returns its start index."""
+        """Start ``segment`` on the next sample of an idle stream; returns its start index (samples)."""
         with self._cond:
             if self._queue:
                 raise RuntimeError("stream is not idle; splice instead")
@@ -204,14 +192,69 @@ class CommandStream:
             return True
 
     def time_of(self, k: int) -> float:
-        """Deadline (monotonic s) of global sample ``k``."""
+        """Deadline (clock s) of global sample ``k``."""
         with self._cond:
             return self._t_anchor + (k - self._k_anchor) * self.dt
 
+    def recent_timing(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Send times (clock s) and lateness (s) of the last ``n`` samples sent.
+
+        Both empty for ``n <= 1`` (a single sample has no period); at most
+        the ``record`` samples kept.
+        """
+        if n <= 1:
+            return np.empty(0), np.empty(0)
+        return np.array(list(self.sent_times)[-n:]), np.array(list(self.lateness)[-n:])
+
     # --------------------------------------------------------------------- loop
+    def step(self) -> StreamStep | None:
+        """Handle the next sample: sleep until its deadline, then publish its command.
+
+        A late sample is handled at once (never skipped); the deadlines stay
+        on the absolute grid.  The thread started by :meth:`start` calls this
+        in a loop; a test may call it instead (never both).
+
+        Returns
+        -------
+        StreamStep or None
+            None, without sleeping, if nothing is due: stopped, or idle with
+            ``hold_when_idle`` off (the thread then waits for work).
+        """
+        with self._cond:
+            if self._stop or self._sleeping():
+                return None
+            k = self._k_next
+            deadline = self._t_anchor + (k - self._k_anchor) * self.dt
+        delay = deadline - self._clock()
+        if delay > 0.0:
+            self._sleep(delay)
+        with self._cond:
+            if self._stop:
+                return None
+            # chosen after the sleep: a splice at k made meanwhile takes effect at k
+            value, started, finished = self._next_value(k)
+            self._k_next = k + 1
+        now = self._clock()
+        if value is not None:
+            self._publish(value)
+            self.sent_times.append(now)
+            self.lateness.append(now - deadline)
+            self.samples_sent += 1
+        if started is not None:
+            started.started_at = now
+            if self._on_start is not None:
+                self._on_start(started)
+        if finished is not None and self._on_finish is not None:
+            self._on_finish(finished)
+        return StreamStep(sample=k, deadline=deadline, time=now, value=value)
+
+    def _sleeping(self) -> bool:
+        # idle and silent: nothing is due until start_now or the setter
+        return not self._queue and not self._hold_when_idle
+
     def _rebase_if_sleeping(self) -> None:
         # A silent idle stream sleeps; when work arrives, sample k_next is due now.
-        if not self._hold_when_idle and not self._queue:
+        if self._sleeping():
             self._t_anchor = self._clock()
             self._k_anchor = self._k_next
 
@@ -250,29 +293,11 @@ class CommandStream:
         self._started.set()
         while True:
             with self._cond:
-                while not self._stop and not self._queue and not self._hold_when_idle:
+                while not self._stop and self._sleeping():
                     self._cond.wait()  # start_now / the setter re-anchor the deadlines
                 if self._stop:
                     return
-                k = self._k_next
-                deadline = self._t_anchor + (k - self._k_anchor) * self.dt
-            delay = deadline - self._clock()
-            if delay > 0.0:
-                time.sleep(delay)
-            with self._cond:
-                if self._stop:
-                    return
-                value, started, finished = self._next_value(k)
-                self._k_next = k + 1
-            now = self._clock()
-            if value is not None:
-                self._publish(value)
-                self.sent_times.append(now)
-                self.lateness.append(now - deadline)
-                self.samples_sent += 1
-            if started is not None:
-                started.started_at = now
-                if self._on_start is not None:
-                    self._on_start(started)
-            if finished is not None and self._on_finish is not None:
-                self._on_finish(finished)
+            self.step()
+
+
+__all__ = ["CommandStream", "StreamStep"]

@@ -1,0 +1,49 @@
+"""Execution of plans, ROS-free: the command stream and preemption.
+
+What the planner node does between a plan and the ``commands`` topic,
+without rclpy or messages (the node keeps parameters, messages, publishing
+and logging):
+
+* :mod:`.timeline` -- :class:`Segment` (a planned command sequence at a
+  global sample index) and the state a timeline predicts at a sample;
+* :mod:`.splice` -- where a goal during a move is spliced in (the splice
+  sample, the predicted state there) and the look-ahead policy;
+* :mod:`.command_stream` -- :class:`CommandStream`, the absolute-deadline
+  loop with the clock, the sleep and the publisher injected;
+* :mod:`.summary` -- the plan's figures the planner reports.
+"""
+
+from .command_stream import CommandStream, StreamStep
+from .splice import (
+    DEFAULT_PLAN_TIME_S,
+    PLAN_TIME_FACTOR,
+    PLAN_TIME_MARGIN_S,
+    PLAN_TIME_WINDOW,
+    SPLICE_ATTEMPTS,
+    SplicePoint,
+    ended_at_rest,
+    lead_samples,
+    longer_lead,
+    splice_point,
+)
+from .summary import plan_summary
+from .timeline import HOLD, Segment, predicted_state
+
+__all__ = [
+    "DEFAULT_PLAN_TIME_S",
+    "HOLD",
+    "PLAN_TIME_FACTOR",
+    "PLAN_TIME_MARGIN_S",
+    "PLAN_TIME_WINDOW",
+    "SPLICE_ATTEMPTS",
+    "CommandStream",
+    "Segment",
+    "SplicePoint",
+    "StreamStep",
+    "ended_at_rest",
+    "lead_samples",
+    "longer_lead",
+    "plan_summary",
+    "predicted_state",
+    "splice_point",
+]
