@@ -21,7 +21,7 @@ from ..core.design.problem import (
     rigid_bound,
 )
 from ..core.design.space import PARAMETER_RANGES, DesignParameter
-from ..core.errors import FlexmotionError
+from ..core.errors import InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -87,27 +87,27 @@ def _parse_param(text: str) -> DesignParameter:
     name, sep, rng = text.partition("=")
     parts = rng.split(":")
     if not sep or not name or len(parts) not in (2, 3):
-        raise FlexmotionError("param", f"expected NAME=LO:HI[:log|linear], got {text!r}")
+        raise InputError("param", f"expected NAME=LO:HI[:log|linear], got {text!r}")
     try:
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
-        raise FlexmotionError(f"param {name}", f"bounds must be numbers, got {rng!r}") from None
+        raise InputError(f"param {name}", f"bounds must be numbers, got {rng!r}") from None
     return DesignParameter(name.strip(), lo, hi, parts[2] if len(parts) == 3 else "auto")
 
 
 def _parse_set(text: str) -> tuple[str, object]:
     name, sep, value = text.partition("=")
     if not sep or not name:
-        raise FlexmotionError("set", f"expected NAME=VALUE, got {text!r}")
+        raise InputError("set", f"expected NAME=VALUE, got {text!r}")
     items = [v for v in value.replace(",", " ").split()]
     try:
         vals = [float(v) for v in items]
     except ValueError:
-        raise FlexmotionError(f"design.{name}", f"must be a number or a list of numbers, got {value!r}") from None
+        raise InputError(f"design.{name}", f"must be a number or a list of numbers, got {value!r}") from None
     if name.strip() in ("masses", "springs", "dampers"):
         return name.strip(), vals
     if len(vals) != 1:
-        raise FlexmotionError(f"design.{name}", f"must be one number, got {value!r}")
+        raise InputError(f"design.{name}", f"must be one number, got {value!r}")
     return name.strip(), vals[0]
 
 
@@ -117,7 +117,7 @@ def _grid(text: str | None, n: int):
     try:
         sizes = [int(v) for v in text.replace(",", " ").split()]
     except ValueError:
-        raise FlexmotionError("grid", f"must be integers, e.g. 41 or 15,15; got {text!r}") from None
+        raise InputError("grid", f"must be integers, e.g. 41 or 15,15; got {text!r}") from None
     return sizes * n if len(sizes) == 1 else sizes
 
 
@@ -125,13 +125,13 @@ def run(args: argparse.Namespace) -> int:
     params = read_parameter_file(args.config, "flexmotion_planner")
     robust = None
     if (args.frequency_error is None) != (args.max_residual is None):
-        raise FlexmotionError("frequency_error", "give both --frequency-error and --max-residual, or neither")
+        raise InputError("frequency_error", "give both --frequency-error and --max-residual, or neither")
     if args.frequency_error is not None:
         robust = RobustnessRequirement(args.frequency_error, args.max_residual)
     if not args.params:
-        raise FlexmotionError("param", "give at least one --param NAME=LO:HI")
+        raise InputError("param", "give at least one --param NAME=LO:HI")
     if not args.goal:
-        raise FlexmotionError("goal", "give at least one --goal GAMMA")
+        raise InputError("goal", "give at least one --goal GAMMA")
     bounds = [_parse_param(t) for t in args.params]
     problem, notes = problem_from_parameters(
         params,
@@ -155,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             write_design(args.output, result, header)
         except OSError as exc:
-            raise FlexmotionError("output", f"cannot write {args.output}: {exc.strerror}") from None
+            raise InputError("output", f"cannot write {args.output}: {exc.strerror}") from None
         sys.stderr.write(f"wrote {args.output}\n")
     if args.plot:
         from ..plots.design import plot_design
@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             plot_design(result, args.plot)
         except OSError as exc:
-            raise FlexmotionError("plot", f"cannot write {args.plot}: {exc.strerror}") from None
+            raise InputError("plot", f"cannot write {args.plot}: {exc.strerror}") from None
         sys.stderr.write(f"wrote {args.plot}\n")
     if args.json:
         print(json.dumps(result.to_dict()))

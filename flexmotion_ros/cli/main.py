@@ -2,7 +2,7 @@
 
 Each sub-command lives in its own module (imported here by name) with ``register(subparsers)``, which
 adds its parser and sets ``func(args) -> int``.  Bad input raises
-:class:`~flexmotion_ros.core.errors.FlexmotionError` (or ``SolverError``);
+:class:`~flexmotion_ros.core.errors.FlexmotionError` (bad input or a planner that failed its checks);
 it is printed as one line on stderr with exit status 2, and nothing goes to
 stdout.
 """
@@ -13,7 +13,7 @@ import argparse
 import os
 import sys
 
-from ..core.errors import FlexmotionError, SolverError
+from ..core.errors import FlexmotionError
 from . import compare_cmd, demo_cmd, design_cmd, model_cmd, plan_cmd, shaper_cmd
 
 #: Modules that provide sub-commands, in help order.
@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (FlexmotionError, SolverError) as exc:
+    except FlexmotionError as exc:
         message = " ".join(str(exc).split())  # always one line
         sys.stderr.write(f"flexmotion: error: {message}\n")
         return 2

@@ -10,7 +10,7 @@ Typical use::
 """
 
 from .config import PlannerConfig, config_from_parameters, load_config, write_config
-from .errors import FlexmotionError, GoalError, ModelError, SolverError
+from .errors import ConfigError, FlexmotionError, GoalError, InputError, ModelError, SolverError, UnreachableError
 from .model.boundary import MoveProblem, motion_to_rest, rest_to_rest, state_to_rest
 from .model.builders import BuiltModel, chain, crane, two_mass
 from .model.modal_model import ModalModel
@@ -29,7 +29,9 @@ __all__ = [
     "BangBangProfile",
     "BuiltModel",
     "Certificate",
+    "ConfigError",
     "FlexmotionError",
+    "InputError",
     "GoalError",
     "ModalModel",
     "ModelError",
@@ -38,6 +40,7 @@ __all__ = [
     "PlannerConfig",
     "SampledProfile",
     "SolverError",
+    "UnreachableError",
     "chain",
     "config_from_parameters",
     "crane",

@@ -109,10 +109,7 @@ class PlannerConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u_max", check_positive("u_max", self.u_max))
-        rate = check_positive("rate_hz", self.rate_hz, "Hz")
-        if rate > 1e6:
-            raise ConfigError("rate_hz", f"must be in (0, 1e6] Hz, got {rate}")
-        object.__setattr__(self, "rate_hz", rate)
+        object.__setattr__(self, "rate_hz", check_rate_hz(self.rate_hz))
         if self.method not in METHOD_NAMES:
             raise ConfigError("method", f"must be one of {sorted(METHOD_NAMES)}, got {self.method!r}")
         lo, hi = float(self.position_min), float(self.position_max)
@@ -153,6 +150,43 @@ class PlannerConfig:
         )
         p.update(self.options)
         return p
+
+
+#: Highest command rate (Hz) a configuration or a plan accepts.
+MAX_RATE_HZ = 1e6
+
+
+def check_rate_hz(value: Any, parameter: str = "rate_hz") -> float:
+    """``value`` as a command rate in Hz, the one check of a rate (config and :func:`plan_move`).
+
+    ``plan_move`` validates its ``rate_hz`` here once and passes the float
+    down.  The low-level planners users also call directly keep their own
+    ``rate_hz > 0`` check (public entry points): ``plan_time_optimal_zoh``,
+    ``plan_fixed_time_zoh``, ``plan_min_fuel_zoh``, ``sampled_fuel_curve``,
+    ``plan_limited_zoh`` and ``plan_time_optimal_friction_zoh``;
+    ``fuel_time_curve`` leaves it to ``plan_min_fuel_zoh``, and the helpers
+    only reached through ``plan_move`` (``sample_command``,
+    ``plan_robust_time_optimal_zoh``) do not check it.
+
+    Parameters
+    ----------
+    value : float
+        The rate (Hz): finite, ``> 0`` and at most :data:`MAX_RATE_HZ`.
+    parameter : str
+        The parameter's name for the error.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``parameter`` and the allowed range ``(0, 1e6] Hz``.
+    """
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and 0.0 < x <= MAX_RATE_HZ):
+        raise ConfigError(parameter, f"must be in (0, 1e6] Hz (finite, > 0), got {value!r}")
+    return x
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

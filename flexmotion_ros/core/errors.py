@@ -1,40 +1,50 @@
-"""Exceptions raised by the numerical core.
+"""The one error hierarchy of the package.
 
-Every error names the offending parameter and the allowed range, so that a
-node can report it verbatim (log, diagnostics, service answer) and a command
-line can print it as a one-line message.
+``FlexmotionError`` is the root: a caller that wants "anything of ours" catches
+it alone.  Below it:
+
+* :class:`InputError` (also a ``ValueError``): the input was wrong.  It names
+  the offending ``parameter`` and the ``reason`` (what was wrong and the allowed
+  range), so that a node reports it verbatim (log, diagnostics, service answer)
+  and the command line prints it as one line.  Subclasses say which input:
+  :class:`ModelError`, :class:`GoalError`, :class:`ConfigError`.
+* :class:`SolverError` (also a ``RuntimeError``): the input was valid but no
+  profile passed the planner's own checks (final state, bound, certificate).
+  A profile that failed its exact final-state check is never returned: the
+  planner raises this instead.  :class:`UnreachableError` is the sampled
+  system that cannot reach the target at the rate at all.
 """
 
 from __future__ import annotations
 
 
-class FlexmotionError(ValueError):
-    """Base class: invalid input.  ``parameter`` names what was wrong."""
+class FlexmotionError(Exception):
+    """Root of every error the package raises on purpose."""
 
-    def __init__(self, parameter: str, message: str) -> None:
-        super().__init__(f"{parameter}: {message}")
+
+class InputError(FlexmotionError, ValueError):
+    """Invalid input; ``parameter`` names it, ``reason`` says what was wrong and the allowed range."""
+
+    def __init__(self, parameter: str, reason: str) -> None:
+        super().__init__(f"{parameter}: {reason}")
         self.parameter = parameter
-        self.reason = message
+        self.reason = reason
 
 
-class ModelError(FlexmotionError):
+class ModelError(InputError):
     """A non-physical or uncontrollable model."""
 
 
-class GoalError(FlexmotionError):
+class GoalError(InputError):
     """A goal that cannot be planned (non-finite, outside limits, ...)."""
 
 
-class SolverError(RuntimeError):
-    """A planner could not produce a profile that passes its own checks.
-
-    A profile that failed its exact final-state check is never returned: the
-    planner raises this instead.
-    """
-
-
-class ConfigError(FlexmotionError):
+class ConfigError(InputError):
     """A configuration file or parameter set that cannot be used."""
+
+
+class SolverError(FlexmotionError, RuntimeError):
+    """A planner could not produce a profile that passes its own checks (the message says which)."""
 
 
 class UnreachableError(SolverError):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any, Protocol
 
 import numpy as np
@@ -11,9 +12,74 @@ from .model.boundary import MoveProblem
 from .simulation.exact import PiecewiseConstant
 
 
-@dataclass
+class _StrEnum(str, Enum):
+    """An enum whose members are their string values.
+
+    Members compare equal to their value (``SolverPath.FAST == "fast"``),
+    serialise to it in JSON, and ``str()`` / f-string formatting give the value
+    itself, so the text of results and messages is what it was with bare
+    strings.
+    """
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, format_spec: str) -> str:
+        return format(str(self.value), format_spec)
+
+
+class SolverPath(_StrEnum):
+    """What produced a time-optimal profile (``BangBangProfile.extra["solver_path"]``).
+
+    Every path's profile passed the same exact final-state check and
+    Pontryagin certificate; the path is a diagnostic only.
+    """
+
+    #: Nothing to do: the initial state is already at rest at the target (duration 0 s).
+    AT_REST = "at_rest"
+    #: The rigid body's time-optimal input also leaves every flexible mode at rest.
+    RIGID = "rigid"
+    #: The full solver (convex inner problems, outer Newton on the duration, polish).
+    FULL = "full"
+    #: Guess, switch-time Newton, certify (:mod:`~flexmotion_ros.core.time_optimal.structure_guess`).
+    FAST = "fast"
+
+
+class ProofKind(_StrEnum):
+    """How the limited planner proved its lower bound on the sample count.
+
+    Stored (as the member, a ``str``) in ``LimitedProfile.extra["lower_bound_proof"]``;
+    a HiGHS verdict is stored as the text ``f"{ProofKind.HIGHS} ({method})"``
+    with the LP method that gave it.
+    """
+
+    #: No limit binds below the unlimited zero-order-hold optimum's sample count.
+    UNLIMITED = "unlimited ZOH optimum"
+    #: A weak-duality bound over every sample exceeds 1 (independently checked).
+    DUAL = "weak-duality bound"
+    #: HiGHS found the feasibility LP with loosened limits infeasible (not independently checked).
+    HIGHS = "HiGHS infeasible verdict"
+
+
+class CertificateStatus(_StrEnum):
+    """What a :class:`Certificate` proved (:attr:`Certificate.status`)."""
+
+    #: Pontryagin's conditions hold with proof: the profile is time-optimal
+    #: (also a zero-duration move already at rest).
+    OPTIMAL = "optimal"
+    #: The sign test could not decide, but the duration is within
+    #: :data:`~flexmotion_ros.core.tolerances.GAP_RTOL` (relative) of a proved
+    #: lower bound on the optimal time (s): optimal to that gap.
+    WITHIN_GAP = "within_gap"
+    #: The checks failed: optimality is not proved.
+    FAILED = "failed"
+
+
+@dataclass(frozen=True, kw_only=True)
 class BangBangProfile:
     """A continuous-time bang-bang input and its checks.
+
+    Frozen and keyword-only (the ``extra`` dict may still be filled in).
 
     Attributes
     ----------
@@ -47,8 +113,8 @@ class BangBangProfile:
     extra : dict
         Diagnostics of the planner, outside the guarantees:
 
-        ``solver_path`` : str
-            What produced the profile: ``"at_rest"`` (nothing to do),
+        ``solver_path`` : SolverPath
+            A ``str`` enum member.  What produced the profile: ``"at_rest"`` (nothing to do),
             ``"rigid"`` (the rigid body's optimum leaves every mode at rest),
             ``"fast"`` (guess, switch-time Newton, certify:
             :mod:`~flexmotion_ros.core.structure_guess`) or ``"full"`` (the
@@ -172,9 +238,11 @@ class SampledProfile:
         }
 
 
-@dataclass
+@dataclass(frozen=True, kw_only=True)
 class Certificate:
     """Evidence that a bang-bang profile is time-optimal.
+
+    Frozen and keyword-only: build it with every value final.
 
     Attributes
     ----------
@@ -206,6 +274,11 @@ class Certificate:
         ``zeros_tau``: the sign changes of the switching function found with
         proof (time-to-go ``T - t``, s, increasing); ``sign0``: its sign
         before the first of them.  Empty if no isolation was run.
+    within_gap : bool
+        Passed only because the duration is within
+        :data:`~flexmotion_ros.core.tolerances.GAP_RTOL` of ``lower_bound``
+        (s), the sign test being undecided (``message`` says so).  Not in
+        :meth:`to_dict` (``message`` carries it).
     """
 
     passed: bool
@@ -220,6 +293,18 @@ class Certificate:
     message: str = "ok"
     lower_bound: float | None = None
     details: dict = field(default_factory=dict)
+    within_gap: bool = False
+
+    @property
+    def status(self) -> CertificateStatus:
+        """What was proved: :attr:`CertificateStatus.OPTIMAL`, ``WITHIN_GAP`` or ``FAILED``.
+
+        ``FAILED`` whenever ``passed`` is false; ``WITHIN_GAP`` if it passed by
+        the gap to ``lower_bound`` only (``within_gap``); else ``OPTIMAL``.
+        """
+        if not self.passed:
+            return CertificateStatus.FAILED
+        return CertificateStatus.WITHIN_GAP if self.within_gap else CertificateStatus.OPTIMAL
 
     def to_dict(self) -> dict:
         """JSON-friendly summary."""
@@ -247,9 +332,11 @@ class ContinuousProfile(Protocol):
     def to_dict(self) -> dict: ...
 
 
-@dataclass
+@dataclass(frozen=True, kw_only=True)
 class PlanResult:
     """A planned move.
+
+    Frozen and keyword-only (the ``info`` dict may still be filled in).
 
     Attributes
     ----------

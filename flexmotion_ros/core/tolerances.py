@@ -9,7 +9,12 @@ beside their use.
 from __future__ import annotations
 
 # time_optimal
-#: Accept a profile whose relative final-state error is below this.
+#: Accept a profile whose relative final-state error is below this: the error
+#: ``max_i |x_i(T) - x_f,i| / s_i`` of
+#: :func:`~flexmotion_ros.core.simulation.error_scale.relative_final_state_error`,
+#: with the scale ``s`` defined once in
+#: :func:`~flexmotion_ros.core.simulation.error_scale.state_scale` (how large each
+#: state can get in a move of that length, whatever the profile).
 FINAL_STATE_RTOL = 1e-9
 
 

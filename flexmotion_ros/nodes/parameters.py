@@ -40,7 +40,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
-from ..core.errors import ConfigError, FlexmotionError
+from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
 from ..core.model.modal_model import ModalModel
 
@@ -443,7 +443,7 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     zeta = tuple(z + (extra[i] if extra else 0.0) for i, z in enumerate(nominal.zeta))
     try:
         model = nominal.with_changes(omega=omega, zeta=zeta)
-    except FlexmotionError as exc:
+    except InputError as exc:
         raise ConfigError("plant.omega_scale/extra_zeta", f"the perturbed model is invalid: {exc}") from None
     coulomb = float(values.get("plant.coulomb_force", 0.0))
     if not (math.isfinite(coulomb) and coulomb >= 0.0):

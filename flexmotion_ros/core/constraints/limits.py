@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FlexmotionError
+from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import simulate_samples
 
@@ -58,9 +58,7 @@ class Limits:
         if self.deflection_max is not None:
             seq = [self.deflection_max] if np.isscalar(self.deflection_max) else list(self.deflection_max)
             if len(seq) != model.n_modes:
-                raise FlexmotionError(
-                    "limits.deflection_max", f"needs one entry per mode ({model.n_modes}), got {len(seq)}"
-                )
+                raise InputError("limits.deflection_max", f"needs one entry per mode ({model.n_modes}), got {len(seq)}")
             vals = [_positive_or_none(f"limits.deflection_max[{i}]", x, "") for i, x in enumerate(seq)]
             q = tuple(math.inf if x is None else x for x in vals)
             if all(math.isinf(x) for x in q):
@@ -97,13 +95,13 @@ def _positive_or_none(name: str, value, unit: str) -> float | None:
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise FlexmotionError(
+        raise InputError(
             name, f"must be a number > 0{(' ' + unit) if unit else ''} (or .inf: no limit), got {value!r}"
         ) from None
     if math.isinf(x) and x > 0:
         return None
     if not math.isfinite(x) or x <= 0.0:
-        raise FlexmotionError(name, f"must be > 0{(' ' + unit) if unit else ''} (or .inf: no limit), got {x}")
+        raise InputError(name, f"must be > 0{(' ' + unit) if unit else ''} (or .inf: no limit), got {x}")
     return x
 
 

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 from ..errors import GoalError, SolverError, UnreachableError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
-from ..results import SampledProfile
+from ..results import ProofKind, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.zoh import plan_time_optimal_zoh
 from .dual import dual_bound, lift, proves_infeasible
@@ -264,14 +264,18 @@ def _extrapolate(times: list[tuple[float, float]], dt: float) -> float:
     return t2 + (t2 - t1) / (d2 - d1) * (dt - d2)
 
 
-#: How a lower bound on the sample count was proved (``LimitedProfile.extra["lower_bound_proof"]``).
-PROOF_UNLIMITED = "unlimited ZOH optimum"
-PROOF_DUAL = "weak-duality bound"
-PROOF_HIGHS = "HiGHS infeasible verdict"
+#: How a lower bound on the sample count was proved (``LimitedProfile.extra["lower_bound_proof"]``):
+#: aliases of the :class:`~flexmotion_ros.core.results.ProofKind` members (``str`` values).
+PROOF_UNLIMITED = ProofKind.UNLIMITED
+PROOF_DUAL = ProofKind.DUAL
+PROOF_HIGHS = ProofKind.HIGHS
 
 
-def _prove(level: _Level, K: int) -> bool | str | None:
+def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     """Is ``K`` proved infeasible?  The proof kind if so; False: ``K`` turned out feasible; None: not proved.
+
+    The proof kind is a :class:`~flexmotion_ros.core.results.ProofKind`, or
+    for a HiGHS verdict the text ``f"{ProofKind.HIGHS} ({method})"``.
 
     In order: the weak-duality bound of the probe's LP (lifted to every sample
     if it was a window LP), the same from wider windows, and last the
@@ -286,10 +290,10 @@ def _prove(level: _Level, K: int) -> bool | str | None:
     sol = level.sols[K]
     if level.full or sol.segments.n_free == K:
         if proves_infeasible(dual_bound(lp, sol)[0]):
-            return PROOF_DUAL
+            return ProofKind.DUAL
     else:
         if proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
-            return PROOF_DUAL
+            return ProofKind.DUAL
         # wider windows around this structure, lifted again; then every sample free
         wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
         if wide is not None:
@@ -297,13 +301,13 @@ def _prove(level: _Level, K: int) -> bool | str | None:
                 level.sols[K], level.t[K] = wide, wide.t
                 return False
             if proves_infeasible(dual_bound(lp, lift(lp, wide))[0]):
-                return PROOF_DUAL
+                return ProofKind.DUAL
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
     full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
     if full is None:
-        return f"{PROOF_HIGHS} ({lp.infeasible_method})"
+        return f"{ProofKind.HIGHS} ({lp.infeasible_method})"
     level.sols[K], level.t[K] = full, 1.0
     return False
 
@@ -406,7 +410,7 @@ def plan_limited_zoh(
     coarse_time = time.perf_counter() - t0
     accepted = None
     reject = proved - 1  # counts up to here are out: proved infeasible, or no sequence passed the checks
-    proof = PROOF_UNLIMITED
+    proof = ProofKind.UNLIMITED
     rounds = 2 * MAX_CUT_ROUNDS
     for _ in range(rounds):
         # the proof for K - 1, moving down while K - 1 turns out feasible

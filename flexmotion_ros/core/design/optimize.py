@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ..config import PlannerConfig, dump_parameters
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from ..model.builders import BuiltModel
 from .problem import DesignObjective, DesignProblem, Evaluation
 from .space import build, design_parameters
@@ -209,11 +209,11 @@ def optimize_design(
         [default_grid(p)] * p if grid is None else ([int(grid)] * p if np.isscalar(grid) else [int(g) for g in grid])
     )
     if len(sizes) != p or any(not 3 <= g <= 2001 for g in sizes):
-        raise FlexmotionError("grid", f"needs {p} value(s), each in [3, 2001] points, got {sizes}")
+        raise InputError("grid", f"needs {p} value(s), each in [3, 2001] points, got {sizes}")
     if int(workers) < 1:
-        raise FlexmotionError("workers", f"must be >= 1 process, got {workers}")
+        raise InputError("workers", f"must be >= 1 process, got {workers}")
     if not (math.isfinite(xtol) and 0.0 < xtol < 1.0):
-        raise FlexmotionError("xtol", f"must be in (0, 1) (fraction of the range), got {xtol}")
+        raise InputError("xtol", f"must be in (0, 1) (fraction of the range), got {xtol}")
     f = DesignObjective(problem)
     start = problem.start()
     start_ev = f(list(start.values()))  # first: bad method options surface here, before the sweep

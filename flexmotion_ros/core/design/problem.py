@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..config import PlannerConfig, config_from_parameters
-from ..errors import ConfigError, FlexmotionError, GoalError, ModelError, SolverError
+from ..errors import ConfigError, GoalError, InputError, ModelError, SolverError
 from ..model.boundary import rest_to_rest
 from ..model.builders import BUILDERS
 from ..simulation.exact import final_state, modal_amplitudes
@@ -66,11 +66,11 @@ class RobustnessRequirement:
     def __post_init__(self) -> None:
         e, r = float(self.frequency_error), float(self.max_residual)
         if not (math.isfinite(e) and 0.0 < e < 1.0):
-            raise FlexmotionError("frequency_error", f"must be in (0, 1) (relative), got {e}")
+            raise InputError("frequency_error", f"must be in (0, 1) (relative), got {e}")
         if not (math.isfinite(r) and r > 0.0):
-            raise FlexmotionError("max_residual", f"must be finite and > 0 (m), got {r}")
+            raise InputError("max_residual", f"must be finite and > 0 (m), got {r}")
         if int(self.samples) < 2:
-            raise FlexmotionError("robust_samples", f"must be >= 2, got {self.samples}")
+            raise InputError("robust_samples", f"must be >= 2, got {self.samples}")
 
     def residual(self, model, x0: np.ndarray, u) -> float:
         """Worst residual mode amplitude of input ``u`` over the frequency errors."""
@@ -127,11 +127,11 @@ class DesignProblem:
         build(self.builder, base)  # the starting design must itself be physical
         params = tuple(self._check_parameter(p, base) for p in self.parameters)
         if not 1 <= len(params) <= MAX_PARAMETERS:
-            raise FlexmotionError("param", f"give 1 to {MAX_PARAMETERS} design parameters, got {len(params)}")
+            raise InputError("param", f"give 1 to {MAX_PARAMETERS} design parameters, got {len(params)}")
         names = [p.name for p in params]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
-            raise FlexmotionError(f"param {min(dup)}", "given more than once")
+            raise InputError(f"param {min(dup)}", "given more than once")
         object.__setattr__(self, "parameters", params)
         if not self.tasks:
             raise GoalError("goal", "give at least one task (--goal GAMMA)")
@@ -159,25 +159,25 @@ class DesignProblem:
         key = m.group(1) if m else name
         if key not in ranges or (self.builder == "chain") != bool(m):
             known = list(ranges) if self.builder != "chain" else [f"{k}[i]" for k in ranges]
-            raise FlexmotionError(f"param {name}", f"is not a design parameter of {self.builder}; one of {known}")
+            raise InputError(f"param {name}", f"is not a design parameter of {self.builder}; one of {known}")
         if m and int(m.group(2)) >= len(base[key]):
-            raise FlexmotionError(f"param {name}", f"index must be in [0, {len(base[key]) - 1}] for this chain")
+            raise InputError(f"param {name}", f"index must be in [0, {len(base[key]) - 1}] for this chain")
         rng = ranges[key]
         try:
             lo, hi = float(p.lower), float(p.upper)
         except (TypeError, ValueError):
-            raise FlexmotionError(f"param {name}", f"bounds must be numbers, got {p.lower!r}:{p.upper!r}") from None
+            raise InputError(f"param {name}", f"bounds must be numbers, got {p.lower!r}:{p.upper!r}") from None
         allowed = f"need finite LO < HI, both {range_text(rng)}"
         if not (math.isfinite(lo) and math.isfinite(hi)) or lo >= hi:
-            raise FlexmotionError(f"param {name}", f"bounds {lo}:{hi}: {allowed}")
+            raise InputError(f"param {name}", f"bounds {lo}:{hi}: {allowed}")
         for which, v in (("lower", lo), ("upper", hi)):
             if not in_range(v, rng):
-                raise FlexmotionError(f"param {name}", f"{which} bound {v} is not physical: {allowed}")
+                raise InputError(f"param {name}", f"{which} bound {v} is not physical: {allowed}")
         scale = p.scale
         if scale not in ("auto", "linear", "log"):
-            raise FlexmotionError(f"param {name}", f"scale must be auto, linear or log, got {scale!r}")
+            raise InputError(f"param {name}", f"scale must be auto, linear or log, got {scale!r}")
         if scale == "log" and lo <= 0.0:
-            raise FlexmotionError(f"param {name}", f"a log scale needs lower bound > 0, got {lo}")
+            raise InputError(f"param {name}", f"a log scale needs lower bound > 0, got {lo}")
         if scale == "auto":
             scale = "log" if lo > 0.0 and hi / lo >= 10.0 else "linear"
         return DesignParameter(name, lo, hi, scale)
@@ -190,7 +190,7 @@ class DesignProblem:
                 build(self.builder, self.base, values)
             except (ModelError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:  # e.g. overflow
                 desc = ", ".join(f"{k}={v:g}" for k, v in values.items())
-                raise FlexmotionError(
+                raise InputError(
                     f"param {self.parameters[0].name}", f"bounds give a non-physical model at {desc}: {exc}"
                 ) from None
 

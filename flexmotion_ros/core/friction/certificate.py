@@ -27,9 +27,18 @@ if TYPE_CHECKING:
     from .extremal import Extremal
 
 
-@dataclass
+CLAIM = (
+    "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
+    "velocity reversals): necessary conditions only; global time-optimality is not proved (friction makes the "
+    "reachable sets non-convex); lower_bound_s is a proved bound"
+)
+
+
+@dataclass(frozen=True, kw_only=True)
 class FrictionCertificate:
     """Evidence that a bang-bang move under friction is a Pontryagin extremal of the piecewise system.
+
+    Frozen and keyword-only: build it with every value final.
 
     Attributes
     ----------
@@ -45,8 +54,9 @@ class FrictionCertificate:
     costate_final : ndarray
         ``lambda(T)`` (``H = 1 + lambda^T x'``).
     claim : str
-        What is and is not proved.
+        What is and is not proved (default :data:`CLAIM`).
     message : str
+        Why it failed, ``"ok"``, or a note (``"already at rest"``).
     """
 
     passed: bool
@@ -56,7 +66,7 @@ class FrictionCertificate:
     sign_consistent: bool
     hamiltonian_max_abs: float
     costate_final: np.ndarray
-    claim: str
+    claim: str = CLAIM
     message: str = "ok"
 
     def to_dict(self) -> dict:
@@ -72,13 +82,6 @@ class FrictionCertificate:
             "claim": self.claim,
             "message": self.message,
         }
-
-
-CLAIM = (
-    "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
-    "velocity reversals): necessary conditions only; global time-optimality is not proved (friction makes the "
-    "reachable sets non-convex); lower_bound_s is a proved bound"
-)
 
 
 def same_switches(zeros: np.ndarray, t_sw: np.ndarray, T: float) -> bool:
@@ -139,7 +142,15 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
     found, unproved, sig_max, _ = _zeros_detail(ext, y)
     if Lams is None or found is None:
         return FrictionCertificate(
-            False, math.inf, 0, 0, False, math.inf, lam, CLAIM, "the contact sticks during the move"
+            passed=False,
+            switch_residual=math.inf,
+            extra_zeros=0,
+            unproved_cells=0,
+            sign_consistent=False,
+            hamiltonian_max_abs=math.inf,
+            costate_final=lam,
+            claim=CLAIM,
+            message="the contact sticks during the move",
         )
     segs = run.segments
     extra = 0
@@ -179,5 +190,13 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
     if not ham <= HAMILTONIAN_TOL:
         reasons.append(f"Hamiltonian not zero (max |H| = {ham:.2e})")
     return FrictionCertificate(
-        not reasons, resid, extra, unproved, sign_ok, ham, lam, CLAIM, "; ".join(reasons) or "ok"
+        passed=not reasons,
+        switch_residual=resid,
+        extra_zeros=extra,
+        unproved_cells=unproved,
+        sign_consistent=sign_ok,
+        hamiltonian_max_abs=ham,
+        costate_final=lam,
+        claim=CLAIM,
+        message="; ".join(reasons) or "ok",
     )

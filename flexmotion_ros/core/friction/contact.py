@@ -50,7 +50,7 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from ..errors import FlexmotionError
+from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, step_matrices
 from ..simulation.modal_response import ModalResponse
@@ -82,9 +82,9 @@ class Contact:
         C = np.asarray(self.C, float).ravel()
         F = float(self.force)
         if not (math.isfinite(F) and F >= 0.0):
-            raise FlexmotionError("coulomb_force", f"must be finite and >= 0 N, got {self.force}")
+            raise InputError("coulomb_force", f"must be finite and >= 0 N, got {self.force}")
         if g.shape != C.shape or not float(C @ g) > 0.0:
-            raise FlexmotionError("friction contact", "needs C g > 0 (friction must oppose the sliding velocity)")
+            raise InputError("friction contact", "needs C g > 0 (friction must oppose the sliding velocity)")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "C", C)
         object.__setattr__(self, "force", F)
@@ -116,10 +116,10 @@ def contact_at_coordinate(built, index: int, coulomb_force: float) -> Contact:
     elif "cart_mass" in p:
         masses = np.array([p["cart_mass"], p["payload_mass"]], float)
     else:
-        raise FlexmotionError("friction contact", f"no masses known for a {built.kind!r} model")
+        raise InputError("friction contact", f"no masses known for a {built.kind!r} model")
     Phi = np.asarray(built.modal_to_physical, float)
     if not 0 <= index < Phi.shape[0]:
-        raise FlexmotionError("friction contact", f"coordinate index must be in [0, {Phi.shape[0] - 1}], got {index}")
+        raise InputError("friction contact", f"coordinate index must be in [0, {Phi.shape[0] - 1}], got {index}")
     eff = np.linalg.solve(Phi, np.eye(Phi.shape[0])[index] / masses)  # modal accelerations per N
     n = built.model.n_states
     g = np.zeros(n)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import ModalModel
 from ..results import BangBangProfile
@@ -51,11 +51,11 @@ def check_coulomb_force(coulomb_force, u_max: float) -> float:
     try:
         F = float(coulomb_force)
     except (TypeError, ValueError):
-        raise FlexmotionError(
+        raise InputError(
             "coulomb_force", f"must be a number in [0, u_max) = [0, {u_max:g}) N, got {coulomb_force!r}"
         ) from None
     if not (math.isfinite(F) and 0.0 <= F < u_max):
-        raise FlexmotionError(
+        raise InputError(
             "coulomb_force",
             f"must be in [0, u_max) = [0, {u_max:g}) N (at F >= u_max the machine cannot start), got {F}",
         )
@@ -186,22 +186,31 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
     model = problem.model
     lb = rigid_friction_time(model, problem.u_max, F, problem.x0, problem.target)
     if base.duration == 0.0:
-        cert = FrictionCertificate(True, 0.0, 0, 0, True, 0.0, np.zeros(model.n_states), "already at rest")
+        cert = FrictionCertificate(
+            passed=True,
+            switch_residual=0.0,
+            extra_zeros=0,
+            unproved_cells=0,
+            sign_consistent=True,
+            hamiltonian_max_abs=0.0,
+            costate_final=np.zeros(model.n_states),
+            message="already at rest",
+        )
         return FrictionProfile(
-            problem,
-            F,
-            np.empty(0),
-            base.levels,
-            0.0,
-            problem.x0.copy(),
-            0.0,
-            0.0,
-            np.empty(0),
-            cert,
-            0.0,
-            lb,
-            0,
-            time.perf_counter() - t0,
+            problem=problem,
+            coulomb_force=F,
+            switch_times=np.empty(0),
+            levels=base.levels,
+            duration=0.0,
+            final_state=problem.x0.copy(),
+            final_state_error=0.0,
+            final_state_error_relative=0.0,
+            reversals=np.empty(0),
+            certificate=cert,
+            frictionless_duration=0.0,
+            lower_bound=lb,
+            continuation_steps=0,
+            solve_time_s=time.perf_counter() - t0,
         )
     levels = np.asarray(base.levels, float)
     # per-state scale: how large each state gets during the frictionless move

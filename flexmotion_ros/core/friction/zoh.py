@@ -19,6 +19,7 @@ from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import SampledProfile
 from ..simulation.exact import PiecewiseConstant
+from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL
 from .contact import ClosedForm, FrictionSystem, simulate_coulomb
 from .time_optimal import (
@@ -118,7 +119,7 @@ def _friction_lp(problem: MoveProblem, F: float, K: int, dt: float, s: np.ndarra
 
 
 def plan_time_optimal_friction_zoh(
-    problem: MoveProblem,
+    problem: MoveProblem | PreparedMove,
     coulomb_force: float,
     rate_hz: float,
     continuous: FrictionProfile | None = None,
@@ -133,6 +134,15 @@ def plan_time_optimal_friction_zoh(
     ``u_max``; the commands are then made exact (least-norm correction of
     :mod:`.zoh`) and checked by the exact event-located friction simulation.
 
+    The check is the one every sampled sequence passes,
+    :func:`~flexmotion_ros.core.sampled.check.verified_samples` (final state
+    against the move's error scale, bound ``u_max``), with the friction
+    simulation injected as its exact simulator.  Before it, a sample count is
+    accepted only if the final state is also within ``FINAL_STATE_RTOL`` of the
+    friction trajectory's own excursion (the criterion this planner always
+    used, kept so that routing through the common check loosens nothing).
+    ``rate_hz`` (Hz, ``> 0``) is checked here: this is a public entry point.
+
     Returns
     -------
     SampledProfile
@@ -146,11 +156,14 @@ def plan_time_optimal_friction_zoh(
         No sequence within ``max_extra`` samples of the continuous move passes
         the exact check.
     """
+    from ..sampled.check import verified_samples
     from ..sampled.zoh import correct_exactly
 
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
+    move = prepare(problem)  # the error scale of the common check (responses reused if prepared)
+    problem = move.problem
     F = check_coulomb_force(coulomb_force, problem.u_max)
     if continuous is None:
         continuous = plan_time_optimal_friction(problem, F)
@@ -205,21 +218,23 @@ def plan_time_optimal_friction_zoh(
         sc = np.where(sc > 0.0, sc, 1.0)
         rel = float(np.max(np.abs(dev) / sc))
         if rel <= FINAL_STATE_RTOL and np.max(np.abs(u)) <= um:
-            sp = SampledProfile(
-                problem=problem,
-                commands=u,
-                dt=dt,
-                states=states,
-                final_state_error=float(np.max(np.abs(dev))),
-                final_state_error_relative=rel,
-                minimal=K == lower,
-                lower_bound_samples=lower,
-                continuous=None,
-                solve_time_s=time.perf_counter() - t0,
-                method="time_optimal_friction",
-            )
-            sp.extra.update({"coulomb_force": F, "peak_command": float(np.max(np.abs(u))), "extra_samples": K - K0})
-            return sp
+            extra = {"coulomb_force": F, "peak_command": float(np.max(np.abs(u))), "extra_samples": K - K0}
+            try:  # the one exact sampled check, with the friction simulation injected
+                return verified_samples(
+                    move,
+                    u,
+                    dt,
+                    "time_optimal_friction",
+                    K == lower,
+                    lower,
+                    None,
+                    extra,
+                    t0,
+                    simulator=lambda _cmds, _dt, states=states: states,
+                )
+            except SolverError as exc:
+                last_reason = str(exc)
+                continue
         last_reason = f"exact friction simulation misses the target (relative error {rel:.2e})"
     raise SolverError(
         f"sampled friction planner: no sequence within {max_extra} samples of the continuous move ({last_reason})"

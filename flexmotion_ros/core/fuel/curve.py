@@ -21,7 +21,7 @@ from ..errors import GoalError, SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile
-from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from .lp import check_move_time, min_fuel_lp, plan_min_fuel_zoh
 from .min_fuel import plan_min_fuel
@@ -63,7 +63,7 @@ class FuelCurve:
 
 
 def fuel_time_curve(
-    problem: MoveProblem,
+    problem: MoveProblem | PreparedMove,
     longest_time: float,
     points: int = 9,
     rate_hz: float | None = None,
@@ -72,7 +72,8 @@ def fuel_time_curve(
     """The fuel/time trade-off between ``T*`` and ``longest_time`` (equally spaced move times).
 
     With ``rate_hz`` also the exact sampled curve at the same times (rounded up
-    to whole samples).
+    to whole samples; ``rate_hz`` is checked by :func:`plan_min_fuel_zoh`).
+    ``problem`` may be a :class:`PreparedMove` (its responses are reused).
 
     Raises
     ------
@@ -80,8 +81,10 @@ def fuel_time_curve(
         A point without a continuous bang-off-bang solution (singular arc):
         use the sampled curve (:func:`sampled_fuel_curve`).
     """
+    move = prepare(problem)
+    problem = move.problem
     if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
+        time_optimal = plan_time_optimal(move)
     T_star = time_optimal.duration
     T_max = check_move_time(longest_time, T_star)
     if not isinstance(points, (int, np.integer)) or points < 2:
@@ -91,16 +94,15 @@ def fuel_time_curve(
     for T in times:
         # each point starts from its own coarse LP: more robust than continuation in T (the
         # pulse structure changes along the curve), and about as fast
-        p = plan_min_fuel(problem, T, time_optimal)
+        p = plan_min_fuel(move, T, time_optimal)
         fuel.append(p.fuel)
         profiles.append(p)
     curve = FuelCurve(times, np.array(fuel), T_star, profiles=profiles)
     if rate_hz is not None:
-        check_positive("rate_hz", rate_hz, "Hz")
         s_times, s_fuel = [], []
         for T, p in zip(times, profiles):
             sp = plan_min_fuel_zoh(
-                problem, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate
+                move, rate_hz, T, time_optimal, nu_guess=None if p.extra.get("time_optimal") else p.costate
             )
             s_times.append(sp.duration)
             s_fuel.append(sp.extra["fuel"])
@@ -110,7 +112,7 @@ def fuel_time_curve(
 
 
 def sampled_fuel_curve(
-    problem: MoveProblem,
+    problem: MoveProblem | PreparedMove,
     rate_hz: float,
     longest_time: float,
     points: int = 9,
@@ -121,21 +123,25 @@ def sampled_fuel_curve(
     The first point is the fewest samples that arrive at all (the sampled
     time optimum, :func:`~flexmotion_ros.core.zoh.plan_time_optimal_zoh`); ``move_times``
     are ``K dt``.  ``fuel`` holds the sampled fuel (there is no continuous curve).
+    ``problem`` may be a :class:`PreparedMove` (its responses are reused);
+    ``rate_hz`` (Hz, ``> 0``) is checked here: a public entry point.
     """
     from ..sampled.zoh import plan_time_optimal_zoh
 
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
+    move = prepare(problem)
+    problem = move.problem
     if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
+        time_optimal = plan_time_optimal(move)
     T_max = check_move_time(longest_time, time_optimal.duration)
     if not isinstance(points, (int, np.integer)) or points < 2:
         raise GoalError("points", f"must be an integer >= 2, got {points}")
-    K_lo = plan_time_optimal_zoh(problem, rate, time_optimal).samples
+    K_lo = plan_time_optimal_zoh(move, rate, time_optimal).samples
     K_hi = max(K_lo, math.floor(T_max / dt * (1.0 + 1e-12)))
     Ks = np.unique(np.round(np.linspace(K_lo, K_hi, points)).astype(int))
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
+    system = move.response
+    x0 = move.x0.copy()
     fuel = []
     nu = None
     for K in Ks:

@@ -33,6 +33,7 @@ from ..results import BangBangProfile, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.lp_tools import correct_arrival, lp_state_scale, sample_vectors
 from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import HIGHS_OPTIONS, LP_GAP_RTOL, MAX_SAMPLES, T_STAR_RTOL
 
@@ -138,7 +139,7 @@ def min_fuel_lp(
 
 
 def plan_min_fuel_zoh(
-    problem: MoveProblem,
+    problem: MoveProblem | PreparedMove,
     rate_hz: float,
     move_time: float,
     time_optimal: BangBangProfile | None = None,
@@ -149,6 +150,8 @@ def plan_min_fuel_zoh(
 
     If fewer samples than the sampled time-optimum would be needed (a
     ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
+    ``problem`` may be a :class:`PreparedMove` (its responses are reused);
+    ``rate_hz`` (Hz, ``> 0``) is checked here: a public entry point.
 
     Returns
     -------
@@ -159,15 +162,17 @@ def plan_min_fuel_zoh(
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
+    move = prepare(problem)
+    problem = move.problem
     if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
+        time_optimal = plan_time_optimal(move)
     T = check_move_time(move_time, time_optimal.duration)
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
+    system = move.response
+    x0 = move.x0.copy()
     um = problem.u_max
     if not np.any(x0):
         return verified_samples(
-            problem, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0
+            move, np.empty(0), dt, "min_fuel", True, 0, continuous, {"fuel": 0.0, "fuel_lower_bound": 0.0}, t0
         )
     K = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     if K > MAX_SAMPLES:
@@ -185,4 +190,4 @@ def plan_min_fuel_zoh(
         raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
     cmds = sol.u[::-1].copy()
     extra = {"fuel": sol.fuel, "fuel_lower_bound": sol.bound, "lp_free_samples": sol.free, "costate": sol.nu.tolist()}
-    return verified_samples(problem, cmds, dt, "min_fuel", False, K_lo, continuous, extra, t0)
+    return verified_samples(move, cmds, dt, "min_fuel", False, K_lo, continuous, extra, t0)

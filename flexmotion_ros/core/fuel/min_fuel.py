@@ -39,6 +39,7 @@ from ..results import BangBangProfile
 from ..sampled.lp_tools import lp_state_scale
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..time_optimal.switching import isolate_roots
 from ..tolerances import FINAL_STATE_RTOL, T_STAR_RTOL
@@ -206,7 +207,7 @@ def _time_optimal_as_fuel(problem: MoveProblem, to: BangBangProfile, t0: float) 
 
 
 def plan_min_fuel(
-    problem: MoveProblem,
+    problem: MoveProblem | PreparedMove,
     move_time: float,
     time_optimal: BangBangProfile | None = None,
     nu0: np.ndarray | None = None,
@@ -216,7 +217,8 @@ def plan_min_fuel(
 
     Parameters
     ----------
-    problem : MoveProblem
+    problem : MoveProblem or PreparedMove
+        The move (a :class:`PreparedMove` reuses its responses).
     move_time : float
         Final time ``T`` (s), ``>= T*``.
     time_optimal : BangBangProfile, optional
@@ -233,13 +235,15 @@ def plan_min_fuel(
         singular arc, ``|S| = 1`` on an interval: use the sampled planner).
     """
     t0 = time.perf_counter()
+    move = prepare(problem)
+    problem = move.problem
     if time_optimal is None:
-        time_optimal = plan_time_optimal(problem)
+        time_optimal = plan_time_optimal(move)
     T = check_move_time(move_time, time_optimal.duration)
-    x0 = problem.shifted_initial()
+    x0 = move.x0.copy()
     if not np.any(x0) or T <= time_optimal.duration * (1.0 + T_STAR_RTOL):
         return _time_optimal_as_fuel(problem, time_optimal, t0)
-    system = ModalResponse(problem.model, problem.include_position)
+    system = move.response
     if nu0 is not None:
         try:
             return _newton(problem, system, x0, T, np.asarray(nu0, float), max_iter, t0)

@@ -8,14 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError, FlexmotionError
+from ..errors import ConfigError
 from ..results import SampledProfile
 from ..simulation.exact import PiecewiseConstant
 
 
 def required_option(config: PlannerConfig, name: str, method: str, allowed: str):
     if name not in config.options:
-        raise FlexmotionError(name, f"required by method {method}: set '{name}' ({allowed}) in the parameter file")
+        raise ConfigError(name, f"required by method {method}: set '{name}' ({allowed}) in the parameter file")
     return config.options[name]
 
 

@@ -12,14 +12,19 @@ from ..config import PlannerConfig
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
 from ..sampled.fixed_time import plan_fixed_time_zoh
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.fixed_time import plan_fixed_time
+from ..time_optimal.solver import plan_time_optimal
 from .common import required_option
 
 
-def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
+def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+    move = prepare(problem)  # responses built once for every planner below
+    problem = move.problem
     raw = required_option(config, "arrival_time", "fixed_time", "s, >= the time-optimal move time T*")
-    continuous = plan_fixed_time(problem, raw)
-    sampled = plan_fixed_time_zoh(problem, continuous.duration, rate_hz, continuous) if rate_hz else None
+    move = move.with_continuous(plan_time_optimal(move))  # T*, solved once for both planners
+    continuous = plan_fixed_time(move, raw)
+    sampled = plan_fixed_time_zoh(move, continuous.duration, rate_hz, continuous) if rate_hz else None
     info = {
         "arrival_time": float(continuous.duration),
         "bound_used": continuous.extra["bound_used"],
@@ -29,7 +34,7 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     if sampled is not None:
         info["requested_samples"] = int(sampled.extra.get("requested_samples", sampled.samples))
         info["peak_command"] = float(sampled.extra.get("peak_command", 0.0))
-    return PlanResult("fixed_time", problem, continuous, sampled, info)
+    return PlanResult(method="fixed_time", problem=problem, continuous=continuous, sampled=sampled, info=info)
 
 
 METHOD_NAME = "fixed_time"

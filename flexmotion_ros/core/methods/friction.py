@@ -16,16 +16,19 @@ from ..friction.time_optimal import check_coulomb_force, plan_time_optimal_frict
 from ..friction.zoh import plan_time_optimal_friction_zoh
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
+from ..simulation.prepared import PreparedMove, prepare
 from .common import required_option
 
 
-def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
+def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+    move = prepare(problem)  # responses built once for every planner below
+    problem = move.problem
     raw = required_option(
         config, "coulomb_force", "time_optimal_friction", f"N, in [0, u_max) = [0, {problem.u_max:g})"
     )
     F = check_coulomb_force(raw, problem.u_max)
     continuous = plan_time_optimal_friction(problem, F)
-    sampled = plan_time_optimal_friction_zoh(problem, F, rate_hz, continuous) if rate_hz else None
+    sampled = plan_time_optimal_friction_zoh(move, F, rate_hz, continuous) if rate_hz else None
     info = {
         "coulomb_force": F,
         "frictionless_duration": continuous.frictionless_duration,
@@ -34,7 +37,9 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     }
     if sampled is not None:
         info["sampled_extra_samples"] = int(sampled.extra.get("extra_samples", 0))
-    return PlanResult("time_optimal_friction", problem, continuous, sampled, info)
+    return PlanResult(
+        method="time_optimal_friction", problem=problem, continuous=continuous, sampled=sampled, info=info
+    )
 
 
 METHOD_NAME = "time_optimal_friction"

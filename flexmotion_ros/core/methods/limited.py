@@ -24,6 +24,7 @@ from ..errors import ConfigError
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
 from ..sampled.zoh import plan_time_optimal_zoh
+from ..simulation.prepared import PreparedMove, prepare
 from .common import SampledInput, planning_rate
 
 LIMIT_OPTIONS = ("limits.velocity_max", "limits.deflection_max", "limits.slew_rate", "limits.report_each")
@@ -50,10 +51,12 @@ def limits_from_options(config: PlannerConfig) -> tuple[Limits, bool]:
     return lim.validated(config.model), each
 
 
-def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
+def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+    move = prepare(problem)  # responses built once for every planner below
+    problem = move.problem
     limits, each = limits_from_options(config)
     rate, source = planning_rate(config, rate_hz)
-    unlimited = plan_time_optimal_zoh(problem, rate)
+    unlimited = plan_time_optimal_zoh(move, rate)
     result = plan_limited_zoh(problem, rate, limits, unlimited)
     info: dict = {"rate_source": source, "unlimited_duration": unlimited.duration, **result.to_dict()}
     if each and len(limits.active) > 1:
@@ -69,7 +72,7 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
         else (f"not proved fewest: no sequence below {result.lower_bound_samples} samples")
     )
     cont = SampledInput(result.sampled, "limited", result.minimal, message)
-    return PlanResult("limited", problem, cont, result.sampled, info)
+    return PlanResult(method="limited", problem=problem, continuous=cont, sampled=result.sampled, info=info)
 
 
 METHOD_NAME = "limited"

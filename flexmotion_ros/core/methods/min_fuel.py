@@ -13,6 +13,7 @@ from ..fuel.lp import plan_min_fuel_zoh
 from ..fuel.min_fuel import FuelProfile, plan_min_fuel
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from .common import SampledInput, float_option, planning_rate
 
@@ -21,9 +22,11 @@ DEFAULT_MOVE_TIME_FACTOR = 1.2
 
 
 # ------------------------------------------------------------------ min_fuel
-def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
+def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+    move = prepare(problem)  # responses built once for every planner below
+    problem = move.problem
     opts = config.options
-    to = plan_time_optimal(problem)
+    to = plan_time_optimal(move)
     T_star = to.duration
     T = float_option(opts, "move_time", " s", T_star * (1.0 - 1e-12), f">= the time-optimal {T_star:.9g}")
     move_time = T if T is not None else DEFAULT_MOVE_TIME_FACTOR * T_star
@@ -48,13 +51,13 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     }
     continuous: FuelProfile | None
     try:
-        continuous = plan_min_fuel(problem, move_time, to)
+        continuous = plan_min_fuel(move, move_time, to)
         nu = None if continuous.extra.get("time_optimal") else continuous.costate
     except SolverError as exc:
         # e.g. a singular arc (|B^T lambda| = 1 on an interval): the LP optimum stays exact
         continuous, nu = None, None
         info["continuous_note"] = f"no continuous bang-off-bang profile: {exc}"
-    sampled = plan_min_fuel_zoh(problem, rate, move_time, to, nu_guess=nu, continuous=continuous)
+    sampled = plan_min_fuel_zoh(move, rate, move_time, to, nu_guess=nu, continuous=continuous)
     info["sampled_fuel"] = sampled.extra["fuel"]
     info["sampled_fuel_lower_bound"] = sampled.extra["fuel_lower_bound"]
     if continuous is not None:
@@ -64,16 +67,16 @@ def plan(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> 
     info["fuel_saving_percent"] = 100.0 * (1.0 - fuel / (problem.u_max * T_star)) if T_star > 0 else 0.0
     if longest is not None:
         try:
-            info["fuel_curve"] = fuel_time_curve(problem, longest, int(points), None, to).to_dict()
+            info["fuel_curve"] = fuel_time_curve(move, longest, int(points), None, to).to_dict()
         except SolverError as exc:
-            curve = sampled_fuel_curve(problem, rate, longest, int(points), to).to_dict()
+            curve = sampled_fuel_curve(move, rate, longest, int(points), to).to_dict()
             info["fuel_curve"] = {**curve, "note": f"sampled curve only: {exc}"}
     cont = (
         continuous
         if continuous is not None
         else SampledInput(sampled, "min_fuel", True, "sampled LP optimum (duality gap closed)")
     )
-    return PlanResult("min_fuel", problem, cont, sampled, info)
+    return PlanResult(method="min_fuel", problem=problem, continuous=cont, sampled=sampled, info=info)
 
 
 METHOD_NAME = "min_fuel"

@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError, FlexmotionError
+from ..errors import ConfigError, InputError
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
 from ..shaping.sensitivity import (
@@ -43,6 +43,7 @@ from ..shaping.sensitivity import (
 from ..shaping.shaped_profile import plan_shaped, sample_command
 from ..shaping.shapers import SHAPERS, check_negative_amplitude, check_tolerance, design
 from ..simulation.exact import PiecewiseConstant
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.robust import check_order
 from ..time_optimal.solver import plan_time_optimal
 
@@ -64,7 +65,7 @@ def options(config: PlannerConfig) -> dict:
         o["robust_order"] = check_order(o["robust_order"])
     except ConfigError:
         raise
-    except FlexmotionError as exc:  # report it as a configuration error, same parameter and reason
+    except InputError as exc:  # report it as a configuration error, same parameter and reason
         raise ConfigError(exc.parameter, exc.reason) from None
     if o["shaper.multimode"] not in ("convolve", "direct"):
         raise ConfigError("shaper.multimode", f"must be 'convolve' or 'direct', got {o['shaper.multimode']!r}")
@@ -119,7 +120,9 @@ def _check_problem(method: str, problem: MoveProblem) -> None:
 
 
 def _shaper_planner(name: str):
-    def planner(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None) -> PlanResult:
+    def planner(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+        move = prepare(problem)  # responses built once for every planner below
+        problem = move.problem
         o = options(config)
         _check_problem(name, problem)
         t0 = time.perf_counter()
@@ -129,11 +132,11 @@ def _shaper_planner(name: str):
         )
         profile = plan_shaped(problem, shaper, name)
         plan_time = time.perf_counter() - t0
-        nominal = plan_time_optimal(problem)
+        nominal = plan_time_optimal(move)
         sampled = None
         if rate_hz:
             lower = max(1, math.ceil(nominal.duration * rate_hz * (1.0 - 1e-12)))
-            sampled = sample_command(problem, profile.command, rate_hz, name, profile, lower)
+            sampled = sample_command(move, profile.command, rate_hz, name, profile, lower)
         info = {"plan_time_s": plan_time, "shaper_duration": shaper.duration, "rigid_level": profile.level}
         info.update(
             robustness_info(profile.command, problem, nominal.duration, o["robustness.tolerance"], profile.residual)
@@ -142,7 +145,7 @@ def _shaper_planner(name: str):
         info["shaper_insensitivity_width"] = [
             float(shaper_insensitivity(shaper, o["robustness.tolerance"], i).width) for i in range(len(shaper.omega))
         ]
-        return PlanResult(name, problem, profile, sampled, info)
+        return PlanResult(method=name, problem=problem, continuous=profile, sampled=sampled, info=info)
 
     return planner
 

@@ -18,13 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import METHOD_NAMES, PlannerConfig
+from ..config import METHOD_NAMES, PlannerConfig, check_rate_hz
 from ..errors import ConfigError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
+from ..simulation.prepared import PreparedMove, prepare
 from . import fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
 
-Planner = Callable[[PlannerConfig, MoveProblem, "float | None"], PlanResult]
+Planner = Callable[[PlannerConfig, "MoveProblem | PreparedMove", "float | None"], PlanResult]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,7 +39,9 @@ class Method:
     description : str
         One line for parameter descriptors and ``--help``.
     planner : callable
-        ``planner(config, problem, rate_hz) -> PlanResult``.
+        ``planner(config, move, rate_hz) -> PlanResult``: ``move`` a
+        :class:`MoveProblem` or the :class:`PreparedMove` :func:`plan_move`
+        builds once, ``rate_hz`` already validated (Hz) or None.
     """
 
     name: str
@@ -63,6 +66,12 @@ if tuple(METHODS) != METHOD_NAMES:  # pragma: no cover - a programming error, ca
 def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> PlanResult:
     """Plan ``problem`` with ``config.method``; with ``rate_hz``, also the exact sampled sequence.
 
+    The responses of ``problem`` are built once here (:func:`prepare`) and
+    passed down to every planner of the method.  ``rate_hz`` (Hz) is
+    validated once here (:func:`~flexmotion_ros.core.config.check_rate_hz`:
+    in ``(0, 1e6]``); ``None`` or ``0`` means no rate given (methods that
+    need one then use ``config.rate_hz``, validated with the configuration).
+
     Raises
     ------
     InputError
@@ -73,7 +82,8 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     method = METHODS.get(config.method)
     if method is None:
         raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {config.method!r}")
-    result = method.planner(config, problem, rate_hz)
+    rate = check_rate_hz(rate_hz) if rate_hz else None
+    result = method.planner(config, prepare(problem), rate)
     if result.sampled is not None and result.sampled.commands.size:
         peak = float(np.max(np.abs(result.sampled.commands)))
         if peak > problem.u_max:  # the bound is never exceeded, whatever the method: a planner fault

@@ -10,8 +10,9 @@ from ..errors import SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
-from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.fixed_time import plan_fixed_time
+from ..time_optimal.solver import plan_time_optimal
 from .lp_tools import sample_vectors
 from .zoh import (
     correct_exactly,
@@ -24,7 +25,7 @@ from .zoh import (
 
 
 def plan_fixed_time_zoh(
-    problem: MoveProblem, arrival_time: float, rate_hz: float, continuous: BangBangProfile | None = None
+    problem: MoveProblem | PreparedMove, arrival_time: float, rate_hz: float, continuous: BangBangProfile | None = None
 ) -> SampledProfile:
     """Least-peak zero-order-hold sequence arriving at rest at sample ``round(arrival_time * rate_hz)``.
 
@@ -33,6 +34,19 @@ def plan_fixed_time_zoh(
     are used instead (``extra["requested_samples"]`` tells).  Reuses the
     windowed least-peak linear program, its dual bound and the exact
     correction of :mod:`.zoh`; checked by matrix-exponential simulation.
+
+    Parameters
+    ----------
+    problem : MoveProblem or PreparedMove
+        The move; a :class:`PreparedMove` reuses its responses and its
+        attached time-optimal profile (for the fewest-samples sequence).
+    arrival_time : float
+        Requested arrival time (s), ``>= T*``.
+    rate_hz : float
+        Command rate (Hz), ``> 0``.  Checked here: this is a public entry
+        point (``plan_move`` validates it once before calling it).
+    continuous : BangBangProfile, optional
+        The continuous fixed-time profile (:func:`plan_fixed_time`) if known.
 
     Raises
     ------
@@ -44,20 +58,24 @@ def plan_fixed_time_zoh(
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
+    move = prepare(problem)
+    problem = move.problem
+    if move.continuous is None:  # the time-optimal move, solved once for both planners below
+        move = move.with_continuous(plan_time_optimal(move))
     if continuous is None:
-        continuous = plan_fixed_time(problem, arrival_time)
+        continuous = plan_fixed_time(move, arrival_time)
     T_req = continuous.duration
     K_req = round(T_req * rate)
     um = problem.u_max
-    fewest = plan_time_optimal_zoh(problem, rate)
+    fewest = plan_time_optimal_zoh(move, rate)
     K = max(K_req, fewest.samples)
     if K == fewest.samples:
         out = fewest
         out.extra.update({"requested_samples": K_req, "peak_command": float(np.max(np.abs(out.commands), initial=0.0))})
         out.method = "fixed_time"
         return out
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
+    system = move.response
+    x0 = move.x0
     scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, K * dt, 33))), axis=0)
     scale = np.where(scale > 0.0, scale, 1.0)
     G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
@@ -82,7 +100,7 @@ def plan_fixed_time_zoh(
     if u_exact is None:
         raise SolverError("fixed-time sampled planner: exact correction left the bound; nothing is returned")
     cmds = u_exact[::-1].copy()
-    out = finish_sampled(problem, cmds, dt, continuous, False, fewest.samples, t0)
+    out = finish_sampled(move, cmds, dt, continuous, False, fewest.samples, t0)
     out.method = "fixed_time"
     out.extra.update(
         {"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)}

@@ -9,17 +9,17 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.sparse import csr_matrix
 
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile, SampledProfile
-from ..simulation.exact import simulate_samples
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.robust import RobustModalResponse
-from ..tolerances import FINAL_STATE_RTOL
+from .check import AugmentedSystem, verified_samples
 from .lp_tools import least_norm_correction
 
 
 def plan_robust_time_optimal_zoh(
-    problem: MoveProblem, profile: BangBangProfile, order: int, rate_hz: float
+    problem: MoveProblem | PreparedMove, profile: BangBangProfile, order: int, rate_hz: float
 ) -> SampledProfile:
     """Fewest zero-order-hold samples keeping the robust constraints exactly (nominal model and derivatives).
 
@@ -29,15 +29,35 @@ def plan_robust_time_optimal_zoh(
     follows and the result is checked by the augmented matrix-exponential
     simulation.  ``K_lo = ceil(T / dt)`` is a proved lower bound (every
     sequence is a continuous input), so ``minimal`` holds if ``K_lo`` works.
+
+    Every returned sequence passes the one exact sampled check
+    (:func:`~flexmotion_ros.core.sampled.check.verified_samples`: nominal
+    final state against the move's error scale, bound), extended with the
+    augmented system (nominal states and their frequency derivatives), whose
+    final state is judged against its own trajectory's excursion as before.
+
+    Parameters
+    ----------
+    problem : MoveProblem or PreparedMove
+        The move (a :class:`PreparedMove` reuses its shifted state and scales).
+    profile : BangBangProfile
+        The continuous robust profile.
+    order : int
+        Derivative order of the robust constraints.
+    rate_hz : float
+        Command rate (Hz), ``> 0`` (not checked here: ``plan_move`` validates it).
     """
     t0 = time.perf_counter()
+    move = prepare(problem)
+    problem = move.problem
     dt = 1.0 / rate_hz
     um = problem.u_max
     system = RobustModalResponse(problem.model, order, problem.include_position)
-    xa0 = system.augment(problem.shifted_initial())
+    xa0 = system.augment(move.x0)
+    aug = AugmentedSystem(A=system.A(), B=system.B(), x0=xa0)
     T = profile.duration
     if T / dt > 5e6:
-        raise FlexmotionError("rate_hz", f"a {T:.3g} s move at {rate_hz:g} Hz needs over 5e6 samples; lower the rate")
+        raise InputError("rate_hz", f"a {T:.3g} s move at {rate_hz:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     scale = np.abs(xa0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
     scale = np.where(scale > 0.0, scale, 1.0)
@@ -71,28 +91,10 @@ def plan_robust_time_optimal_zoh(
         cmds = least_norm_correction(G, w, u, um)
         if cmds is None:
             continue
-        xa = simulate_samples((system.A(), system.B()), xa0, cmds, dt)
-        sa = np.max(np.abs(xa), axis=0)
-        sa = np.where(sa > 0.0, sa, 1.0)
-        rel_aug = float(np.max(np.abs(xa[-1]) / sa))
-        states = simulate_samples(problem.model, problem.x0, cmds, dt)
-        target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
-        dev = states[-1] - target
-        if problem.target is None:
-            dev = dev[1:]
-        if rel_aug <= FINAL_STATE_RTOL and np.max(np.abs(cmds)) <= um:
-            return SampledProfile(
-                problem,
-                cmds,
-                dt,
-                states,
-                float(np.max(np.abs(dev))),
-                rel_aug,
-                K == K_lo,
-                K_lo,
-                profile,
-                time.perf_counter() - t0,
-                "robust_time_optimal",
-                {"augmented_final_state_error_relative": rel_aug},
+        try:
+            return verified_samples(
+                move, cmds, dt, "robust_time_optimal", K == K_lo, K_lo, profile, None, t0, augmented=aug
             )
+        except SolverError:  # misses the nominal or the augmented target: one more sample
+            continue
     raise SolverError(f"robust time-optimal: no sampled sequence at {rate_hz:g} Hz found; nothing is returned")

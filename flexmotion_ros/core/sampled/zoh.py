@@ -43,8 +43,7 @@ from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..simulation.exact import simulate_samples
-from ..simulation.modal_response import ModalResponse
-from ..time_optimal.reachable_set import state_scale
+from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import BOUND_RTOL, LP_RTOL
 from .check import verified_samples
@@ -189,16 +188,18 @@ def correct_exactly(G: np.ndarray, w: np.ndarray, u: np.ndarray, u_max: float) -
 
 
 def plan_time_optimal_zoh(
-    problem: MoveProblem, rate_hz: float, continuous: BangBangProfile | None = None
+    problem: MoveProblem | PreparedMove, rate_hz: float, continuous: BangBangProfile | None = None
 ) -> SampledProfile:
     """Fewest zero-order-hold samples at ``rate_hz`` that reach rest exactly.
 
     Parameters
     ----------
-    problem : MoveProblem
-        The move.
+    problem : MoveProblem or PreparedMove
+        The move; a :class:`PreparedMove` reuses its responses (and its
+        attached continuous optimum if ``continuous`` is not given).
     rate_hz : float
-        Command rate (Hz), ``> 0``.
+        Command rate (Hz), ``> 0``.  Checked here: this is a public entry
+        point (``plan_move`` validates it once before calling it).
     continuous : BangBangProfile, optional
         The continuous time-optimal profile of ``problem`` if already known.
 
@@ -215,10 +216,12 @@ def plan_time_optimal_zoh(
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
+    move = prepare(problem)
+    problem = move.problem
     if continuous is None:
-        continuous = plan_time_optimal(problem)
-    system = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
+        continuous = move.continuous if move.continuous is not None else plan_time_optimal(move)
+    system = move.response
+    x0 = move.x0
     um = problem.u_max
     T = continuous.duration
     if T == 0.0:
@@ -228,7 +231,7 @@ def plan_time_optimal_zoh(
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     # signs of the continuous optimum at the sample midpoints, aligned at the end
-    scale = state_scale(system, x0, um, T)
+    scale = move.error_scale(T)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
     if not np.any(nu):
@@ -275,7 +278,7 @@ def plan_time_optimal_zoh(
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
                     return finish_sampled(
-                        problem, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
+                        move, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
                     )
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
@@ -286,6 +289,14 @@ def plan_time_optimal_zoh(
     )
 
 
-def finish_sampled(problem, cmds, dt, continuous, minimal, lower, t0) -> SampledProfile:
-    """The exact check of :func:`~flexmotion_ros.core.sampled_check.verified_samples` for a ZOH optimum."""
+def finish_sampled(
+    problem: MoveProblem | PreparedMove,
+    cmds: np.ndarray,
+    dt: float,
+    continuous: BangBangProfile | None,
+    minimal: bool,
+    lower: int,
+    t0: float,
+) -> SampledProfile:
+    """The exact check of :func:`~flexmotion_ros.core.sampled.check.verified_samples` for a ZOH optimum."""
     return verified_samples(problem, cmds, dt, "time_optimal", minimal, lower, continuous, None, t0)

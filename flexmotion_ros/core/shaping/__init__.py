@@ -8,13 +8,15 @@ from .sensitivity import (
     shaper_insensitivity,
 )
 from .shaped_profile import ShapedProfile, plan_shaped, sample_command, shape
-from .shapers import SHAPERS, Shaper, design, multi_mode_direct
+from .shapers import SHAPER_TABLE, SHAPERS, Shaper, ShaperKind, design, multi_mode_direct
 
 __all__ = [
     "Insensitivity",
     "SHAPERS",
+    "SHAPER_TABLE",
     "ShapedProfile",
     "Shaper",
+    "ShaperKind",
     "command_insensitivity",
     "command_vibration",
     "design",

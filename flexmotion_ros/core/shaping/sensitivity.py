@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from ..errors import FlexmotionError
+from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, modal_amplitudes, simulate
 from ..tolerances import TOLERANCE_SLACK
@@ -127,7 +127,7 @@ def insensitivity(
     method.  A bump touching the tolerance (EI humps) does not end it.
     """
     if not 0.0 < tolerance < 1.0:
-        raise FlexmotionError("tolerance", f"must be in (0, 1) (fraction), got {tolerance}")
+        raise InputError("tolerance", f"must be in (0, 1) (fraction), got {tolerance}")
     lim = tolerance * (1.0 + TOLERANCE_SLACK)
     if float(np.asarray(vibration(np.array([nominal])))[0]) > lim:
         return Insensitivity(tolerance, nominal, nominal)

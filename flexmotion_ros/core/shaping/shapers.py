@@ -43,27 +43,14 @@ grid step), which is usually shorter than the convolution.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linprog
 
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from .numerical_shapers import ei_unit, impulse_vibration, negative_unit
-
-#: Shaper names and one-line descriptions.
-SHAPERS: dict[str, str] = {
-    "zv": "zero vibration (2 impulses, Td/2)",
-    "zvd": "zero vibration and derivative (3 impulses, Td)",
-    "zvdd": "zero vibration, two derivatives (4 impulses, 1.5 Td)",
-    "mzv": "modified ZV: 3 positive impulses over 0.75 Td",
-    "ei": "extra-insensitive, one hump of height tolerance",
-    "ei2": "two-hump extra-insensitive",
-    "ei3": "three-hump extra-insensitive",
-    "sna": "specified negative amplitude [1, -P, P] (P = shaper.negative_amplitude)",
-    "um_zv": "unity-magnitude ZV [1, -1, 1]",
-    "um_zvd": "unity-magnitude ZVD [1, -1, 1, -1, 1]",
-}
 
 
 @dataclass(frozen=True)
@@ -186,27 +173,120 @@ def _mzv(zeta: float) -> tuple[np.ndarray, np.ndarray]:
     return _td(zeta) * np.array([0.0, 0.375, 0.75]), a / a.sum()
 
 
+@dataclass(frozen=True, kw_only=True)
+class ShaperKind:
+    """One row of the shaper table: a name, what it is, and its unit-frequency impulse sequence.
+
+    Attributes
+    ----------
+    name : str
+        The ``method`` / ``flexmotion shaper`` name.
+    description : str
+        One line for ``--help`` and parameter descriptors.
+    unit : callable
+        ``unit(zeta, tolerance, negative_amplitude) -> (times, amplitudes)`` at
+        ``omega = 1`` rad/s (times in s; the caller scales them by ``1 / omega``).
+    exact : callable
+        ``exact(zeta) -> bool``: whether the sequence is a closed form (True) or
+        a numerically solved one (False).
+    """
+
+    name: str
+    description: str
+    unit: Callable[[float, float, float], tuple[np.ndarray, np.ndarray]]
+    exact: Callable[[float], bool]
+
+
+def _closed(zeta: float) -> bool:
+    return True
+
+
+def _closed_if_undamped(zeta: float) -> bool:
+    return zeta == 0.0
+
+
+def _solved(zeta: float) -> bool:
+    return False
+
+
+#: Every shaper, one row each (like Klipper's ``INPUT_SHAPERS``), in help order.
+SHAPER_TABLE: tuple[ShaperKind, ...] = (
+    ShaperKind(
+        name="zv", description="zero vibration (2 impulses, Td/2)", unit=lambda z, v, p: _zv_n(z, 0), exact=_closed
+    ),
+    ShaperKind(
+        name="zvd",
+        description="zero vibration and derivative (3 impulses, Td)",
+        unit=lambda z, v, p: _zv_n(z, 1),
+        exact=_closed,
+    ),
+    ShaperKind(
+        name="zvdd",
+        description="zero vibration, two derivatives (4 impulses, 1.5 Td)",
+        unit=lambda z, v, p: _zv_n(z, 2),
+        exact=_closed,
+    ),
+    ShaperKind(
+        name="mzv",
+        description="modified ZV: 3 positive impulses over 0.75 Td",
+        unit=lambda z, v, p: _mzv(z),
+        exact=_closed,
+    ),
+    ShaperKind(
+        name="ei",
+        description="extra-insensitive, one hump of height tolerance",
+        unit=lambda z, v, p: ei_unit(z, v, 1),
+        exact=_closed_if_undamped,
+    ),
+    ShaperKind(
+        name="ei2",
+        description="two-hump extra-insensitive",
+        unit=lambda z, v, p: ei_unit(z, v, 2),
+        exact=_closed_if_undamped,
+    ),
+    ShaperKind(
+        name="ei3",
+        description="three-hump extra-insensitive",
+        unit=lambda z, v, p: ei_unit(z, v, 3),
+        exact=_closed_if_undamped,
+    ),
+    ShaperKind(
+        name="sna",
+        description="specified negative amplitude [1, -P, P] (P = shaper.negative_amplitude)",
+        unit=lambda z, v, p: negative_unit(z, p),
+        exact=_closed_if_undamped,
+    ),
+    ShaperKind(
+        name="um_zv",
+        description="unity-magnitude ZV [1, -1, 1]",
+        unit=lambda z, v, p: negative_unit(z, 1.0),
+        exact=_closed_if_undamped,
+    ),
+    ShaperKind(
+        name="um_zvd",
+        description="unity-magnitude ZVD [1, -1, 1, -1, 1]",
+        unit=lambda z, v, p: negative_unit(z, None),
+        exact=_solved,
+    ),
+)
+
+#: Shaper names and one-line descriptions (from :data:`SHAPER_TABLE`).
+SHAPERS: dict[str, str] = {kind.name: kind.description for kind in SHAPER_TABLE}
+_BY_NAME = {kind.name: kind for kind in SHAPER_TABLE}
+
+
 def _unit(name: str, zeta: float, tolerance: float, negative_amplitude: float) -> tuple[np.ndarray, np.ndarray, bool]:
-    if name in ("zv", "zvd", "zvdd"):
-        return (*_zv_n(zeta, {"zv": 0, "zvd": 1, "zvdd": 2}[name]), True)
-    if name == "mzv":
-        return (*_mzv(zeta), True)
-    if name in ("ei", "ei2", "ei3"):
-        return (*ei_unit(zeta, tolerance, {"ei": 1, "ei2": 2, "ei3": 3}[name]), zeta == 0.0)
-    if name == "sna":
-        return (*negative_unit(zeta, negative_amplitude), zeta == 0.0)
-    if name == "um_zv":
-        return (*negative_unit(zeta, 1.0), zeta == 0.0)
-    if name == "um_zvd":
-        return (*negative_unit(zeta, None), False)
-    raise FlexmotionError("shaper", f"must be one of {sorted(SHAPERS)}, got {name!r}")
+    kind = _BY_NAME.get(name)
+    if kind is None:
+        raise InputError("shaper", f"must be one of {sorted(SHAPERS)}, got {name!r}")
+    return (*kind.unit(zeta, tolerance, negative_amplitude), kind.exact(zeta))
 
 
 def check_tolerance(value) -> float:
     """Validate ``shaper.tolerance`` (EI vibration limit V, fraction): ``0 < V < 0.5``."""
     v = _number("shaper.tolerance", value)
     if not 0.0 < v < 0.5:
-        raise FlexmotionError("shaper.tolerance", f"must be in (0, 0.5) (fraction, 0.05 = 5 %), got {v}")
+        raise InputError("shaper.tolerance", f"must be in (0, 0.5) (fraction, 0.05 = 5 %), got {v}")
     return v
 
 
@@ -214,7 +294,7 @@ def check_negative_amplitude(value) -> float:
     """Validate ``shaper.negative_amplitude`` (SNA P): ``0.5 < P <= 2``."""
     p = _number("shaper.negative_amplitude", value)
     if not 0.5 < p <= 2.0:
-        raise FlexmotionError("shaper.negative_amplitude", f"must be in (0.5, 2] (0.5 is ZV), got {p}")
+        raise InputError("shaper.negative_amplitude", f"must be in (0.5, 2] (0.5 is ZV), got {p}")
     return p
 
 
@@ -222,9 +302,9 @@ def _number(name: str, value) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise FlexmotionError(name, f"must be a number, got {value!r}") from None
+        raise InputError(name, f"must be a number, got {value!r}") from None
     if not math.isfinite(v):
-        raise FlexmotionError(name, f"must be finite, got {v}")
+        raise InputError(name, f"must be finite, got {v}")
     return v
 
 
@@ -232,9 +312,9 @@ def _check_mode(i: int, w: float, z: float) -> tuple[float, float]:
     w = _number(f"omega[{i}]", w)
     z = _number(f"zeta[{i}]", z)
     if w <= 0.0:
-        raise FlexmotionError(f"omega[{i}]", f"must be > 0 rad/s, got {w}")
+        raise InputError(f"omega[{i}]", f"must be > 0 rad/s, got {w}")
     if not 0.0 <= z < 1.0:
-        raise FlexmotionError(f"zeta[{i}]", f"must be in [0, 1), got {z}")
+        raise InputError(f"zeta[{i}]", f"must be in [0, 1), got {z}")
     return w, z
 
 
@@ -258,11 +338,11 @@ def design(
         all modes at once (``zv``, ``zvd``, ``zvdd`` only).
     """
     if name not in SHAPERS:
-        raise FlexmotionError("shaper", f"must be one of {sorted(SHAPERS)}, got {name!r}")
+        raise InputError("shaper", f"must be one of {sorted(SHAPERS)}, got {name!r}")
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     zeta = np.atleast_1d(np.asarray(zeta, dtype=float))
     if omega.size == 0 or omega.size != zeta.size:
-        raise FlexmotionError("omega/zeta", f"need one damping ratio per frequency, got {omega.size} and {zeta.size}")
+        raise InputError("omega/zeta", f"need one damping ratio per frequency, got {omega.size} and {zeta.size}")
     modes = [_check_mode(i, w, z) for i, (w, z) in enumerate(zip(omega, zeta))]
     tolerance = check_tolerance(tolerance)
     negative_amplitude = check_negative_amplitude(negative_amplitude)
@@ -272,10 +352,10 @@ def design(
     if name == "sna":
         params["negative_amplitude"] = negative_amplitude
     if multimode not in ("convolve", "direct"):
-        raise FlexmotionError("shaper.multimode", f"must be 'convolve' or 'direct', got {multimode!r}")
+        raise InputError("shaper.multimode", f"must be 'convolve' or 'direct', got {multimode!r}")
     if multimode == "direct" and len(modes) > 1:
         if name not in ("zv", "zvd", "zvdd"):
-            raise FlexmotionError("shaper.multimode", f"'direct' is available for zv, zvd, zvdd, not {name}")
+            raise InputError("shaper.multimode", f"'direct' is available for zv, zvd, zvdd, not {name}")
         return multi_mode_direct([m[0] for m in modes], [m[1] for m in modes], {"zv": 0, "zvd": 1, "zvdd": 2}[name])
     out = None
     for w, z in modes:

@@ -53,7 +53,8 @@ def certify(
     If those checks cannot decide (a cluster of switches so tight that the
     switching function's sign there is below rounding) but ``T`` is within
     :data:`GAP_RTOL` of a proved ``lower_bound`` on the optimal time, the
-    profile is certified by that gap instead, and the message says so.
+    profile is certified by that gap instead, and the message says so
+    (``status`` is then :attr:`~flexmotion_ros.core.results.CertificateStatus.WITHIN_GAP`).
 
     Parameters
     ----------
@@ -146,7 +147,8 @@ def certify(
         reasons.append(f"Hamiltonian not constant zero (max |H| = {ham_max:.2e}, relative spread {ham_spread:.2e})")
     passed = not reasons
     gap = T - lower_bound if lower_bound is not None else math.inf
-    if not passed and gap <= GAP_RTOL * T:
+    within_gap = not passed and gap <= GAP_RTOL * T
+    if within_gap:
         passed = True
         reasons = [
             f"optimal within {gap:.1e} s: the proved lower bound is {lower_bound!r} s (sign test: {'; '.join(reasons)})"
@@ -166,4 +168,5 @@ def certify(
         # the proved sign changes of S (time-to-go, s): a failed candidate's
         # structure can be corrected from them (fast path of the planner)
         details={"zeros_tau": iso.roots, "sign0": iso.sign0},
+        within_gap=within_gap,
     )

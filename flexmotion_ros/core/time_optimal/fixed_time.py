@@ -34,11 +34,11 @@ import time
 import numpy as np
 from scipy.optimize import brentq
 
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile
 from ..simulation.exact import PiecewiseConstant, simulate
-from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL, SAME_TIME_RTOL
 from .certificate import certify
 from .solver import plan_time_optimal
@@ -49,31 +49,31 @@ def check_arrival_time(arrival_time, T_star: float) -> float:
     try:
         T = float(arrival_time)
     except (TypeError, ValueError):
-        raise FlexmotionError(
+        raise InputError(
             "arrival_time", f"must be a time in [T*, inf) = [{T_star:.9g}, inf) s, got {arrival_time!r}"
         ) from None
     if not math.isfinite(T) or T < T_star * (1.0 - SAME_TIME_RTOL):
-        raise FlexmotionError(
+        raise InputError(
             "arrival_time",
             f"must be in [T*, inf) = [{T_star:.9g}, inf) s (T* is the time-optimal move time at u_max), got {T}",
         )
     return max(T, T_star)
 
 
-def _with_bound(problem: MoveProblem, bound: float) -> MoveProblem:
-    return MoveProblem(problem.model, bound, problem.x0, problem.target)
-
-
 def lowest_bound(
-    problem: MoveProblem, arrival_time: float, T_star: float | None = None, xtol: float = 1e-15
+    problem: MoveProblem | PreparedMove, arrival_time: float, T_star: float | None = None, xtol: float = 1e-15
 ) -> tuple[float, BangBangProfile]:
     """The bound ``u' <= u_max`` whose time-optimal move takes ``arrival_time`` (root-find; see module notes).
 
-    Returns ``(u', profile at u')``; the profile's duration equals
-    ``arrival_time`` to the root-finder's tolerance (the caller polishes).
+    ``problem``: a :class:`PreparedMove` shares its responses with every
+    bound tried, and its attached time-optimal profile (at ``u_max``) is used
+    instead of solving again.  Returns ``(u', profile at u')``; the profile's
+    duration equals ``arrival_time`` (s) to the root-finder's tolerance (the
+    caller polishes).
     """
-    um = problem.u_max
-    best = plan_time_optimal(problem)
+    move = prepare(problem)
+    um = move.u_max
+    best = move.continuous if move.continuous is not None else plan_time_optimal(move)
     T_star = best.duration if T_star is None else T_star
     T_req = check_arrival_time(arrival_time, T_star)
     if T_req <= T_star * (1.0 + SAME_TIME_RTOL):
@@ -81,7 +81,7 @@ def lowest_bound(
     cache: dict[float, BangBangProfile] = {}
 
     def f(x: float) -> float:
-        prof = plan_time_optimal(_with_bound(problem, math.exp(x)))
+        prof = plan_time_optimal(move.with_bound(math.exp(x)))
         cache[x] = prof
         return math.log(prof.duration) - math.log(T_req)
 
@@ -93,20 +93,20 @@ def lowest_bound(
         x_hi, x_lo = x_lo, x_lo - math.log(4.0)
         f_lo = f(x_lo)
     x = brentq(f, x_lo, x_hi, xtol=xtol, rtol=4.0 * np.finfo(float).eps, maxiter=200)
-    prof = cache.get(x) or plan_time_optimal(_with_bound(problem, math.exp(x)))
+    prof = cache.get(x) or plan_time_optimal(move.with_bound(math.exp(x)))
     return math.exp(x), prof
 
 
 def _polish(
-    problem: MoveProblem, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, max_iter: int = 30
+    move: PreparedMove, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, max_iter: int = 30
 ):
     """Newton on ``(t_1..t_L, u')`` with the duration fixed at ``T``: final state exactly at rest.
 
     ``x(T) = e^{AT} x0 + u' sum_k sign_k (Gamma(T - t_k) - Gamma(T - t_{k+1}))``
     with ``Gamma(tau) = int_0^tau e^{As} B ds``; ``dx/dt_j = u' (sign_{j-1} - sign_j) e^{A (T - t_j)} B``.
     """
-    sys = ModalResponse(problem.model, problem.include_position)
-    x0 = problem.shifted_initial()
+    sys = move.response
+    x0 = move.x0
     scale = np.abs(x0) + bound * np.max(np.abs(sys.input_integral(np.linspace(0.0, T, 65))), axis=0)
     scale = np.where(scale > 0.0, scale, 1.0)
     eAx = sys.expm_x(T, x0)
@@ -145,19 +145,19 @@ def _polish(
     return z[:L], float(z[L]), rn
 
 
-def _continue_in_time(problem: MoveProblem, best: BangBangProfile, T_req: float):
+def _continue_in_time(move: PreparedMove, best: BangBangProfile, T_req: float):
     """Follow ``(switch times, u')`` from ``T*`` to ``T_req`` with the switch structure fixed.
 
     Returns ``(switch_times, u')`` or None if a step fails (the structure changes).
     """
     signs = np.sign(best.levels)
-    T, t_sw, ub = best.duration, best.switch_times.copy(), problem.u_max
+    T, t_sw, ub = best.duration, best.switch_times.copy(), move.u_max
     step = 0.25
     while T < T_req:
         T_new = min(T_req, T * (1.0 + step))
         t_g = t_sw * (T_new / T)
         ub_g = ub * (T / T_new) ** 2
-        t_new, ub_new, res = _polish(problem, T_new, t_g, signs, ub_g)
+        t_new, ub_new, res = _polish(move, T_new, t_g, signs, ub_g)
         if res <= 1e-13 and ub_new > 0.0:
             T, t_sw, ub = T_new, t_new, ub_new
             step = min(2.0 * step, 1.0)
@@ -168,12 +168,14 @@ def _continue_in_time(problem: MoveProblem, best: BangBangProfile, T_req: float)
     return t_sw, ub
 
 
-def plan_fixed_time(problem: MoveProblem, arrival_time: float) -> BangBangProfile:
+def plan_fixed_time(problem: MoveProblem | PreparedMove, arrival_time: float) -> BangBangProfile:
     """Vibration-free move arriving at rest at exactly ``arrival_time`` with the least peak force.
 
     Parameters
     ----------
-    problem : MoveProblem
+    problem : MoveProblem or PreparedMove
+        The move; a :class:`PreparedMove` reuses its responses and, if
+        attached, its time-optimal profile (else it is solved here).
     arrival_time : float
         Requested move time ``T_req`` (s), ``>= T*`` (the time-optimal time at ``u_max``).
 
@@ -192,44 +194,48 @@ def plan_fixed_time(problem: MoveProblem, arrival_time: float) -> BangBangProfil
         No profile passes the exact final-state check.
     """
     t0 = time.perf_counter()
-    best = plan_time_optimal(problem)
+    move = prepare(problem)
+    problem = move.problem
+    best = move.continuous if move.continuous is not None else plan_time_optimal(move)
+    move = move.with_continuous(best)
     T_star = best.duration
     T_req = check_arrival_time(arrival_time, T_star)
     if best.duration == 0.0:  # already at rest: hold still until the requested time
-        return _assemble(problem, T_req, np.empty(0), np.array([1.0]), 0.0, best, T_star, t0)
+        return _assemble(move, T_req, np.empty(0), np.array([1.0]), 0.0, best, T_star, t0)
     # fast path: continuation in the duration from T*, Newton on (switch times, u') at each step
-    cont = _continue_in_time(problem, best, T_req)
+    cont = _continue_in_time(move, best, T_req)
     if cont is not None:
         switch_times, bound = cont
-        out = _assemble(problem, T_req, switch_times, np.sign(best.levels), min(bound, problem.u_max), best, T_star, t0)
+        out = _assemble(move, T_req, switch_times, np.sign(best.levels), min(bound, problem.u_max), best, T_star, t0)
         if out.certified and bound <= problem.u_max:
             return out
     # otherwise a loose root-find on u' fixes the switch structure; Newton at T_req the rest
     for xtol in (1e-6, 1e-15):
-        bound, prof = lowest_bound(problem, T_req, T_star, xtol)
+        bound, prof = lowest_bound(move, T_req, T_star, xtol)
         signs = np.sign(prof.levels)
         if bound >= problem.u_max and T_req <= T_star * (1.0 + SAME_TIME_RTOL):
-            return _assemble(problem, T_star, prof.switch_times, signs, problem.u_max, prof, T_star, t0)
-        switch_times, bound, _ = _polish(problem, T_req, prof.switch_times * (T_req / prof.duration), signs, bound)
+            return _assemble(move, T_star, prof.switch_times, signs, problem.u_max, prof, T_star, t0)
+        switch_times, bound, _ = _polish(move, T_req, prof.switch_times * (T_req / prof.duration), signs, bound)
         if bound > problem.u_max:
             if bound > problem.u_max * (1.0 + 1e-9):
                 raise SolverError(
                     f"fixed-time planner needs bound {bound} > u_max = {problem.u_max}; nothing is returned"
                 )
             bound = problem.u_max
-        out = _assemble(problem, T_req, switch_times, signs, bound, prof, T_star, t0)
+        out = _assemble(move, T_req, switch_times, signs, bound, prof, T_star, t0)
         if out.certified:
             break
     return out
 
 
 def _assemble(
-    problem, T, switch_times, signs, bound, ref: BangBangProfile, T_star: float, t0: float
+    move: PreparedMove, T, switch_times, signs, bound, ref: BangBangProfile, T_star: float, t0: float
 ) -> BangBangProfile:
     levels = bound * np.asarray(signs, float)
     u = PiecewiseConstant.from_switches(switch_times, levels, T)
-    x0s = problem.shifted_initial()
-    sysr = ModalResponse(problem.model, problem.include_position)
+    problem = move.problem
+    x0s = move.x0
+    sysr = move.response
     states = simulate((sysr.A(), sysr.B()), x0s, u)  # the independent matrix-exponential check
     xT = states[-1]
     sc = np.abs(x0s) + np.max(np.abs(states), axis=0)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..simulation.error_scale import state_scale  # re-exported: the error scale lives with the simulation
 from .switching import find_roots, sample_grid
 
 
@@ -38,43 +39,6 @@ class Evaluation:
     eAx: np.ndarray  # e^{A T} x0 (unscaled)
     H: np.ndarray | None = None  # scaled Hessian of h
     FT: np.ndarray | None = None  # scaled dF/dT
-
-
-def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
-    """How large each state can get in a move of length ``T`` (state units).
-
-    ``|x0| + u_max max_{tau <= T} |Gamma(tau)|``: the scale against which a
-    final-state error is judged.  It does not depend on the profile, so a
-    profile that barely excites a mode is not judged against that mode's tiny
-    excursion.
-    """
-    # uniform points plus geometric ones near 0: a fast, damped mode peaks
-    # (and decays) long before T on a long move
-    grid = np.concatenate([np.linspace(0.0, T, 65), np.geomspace(T * 1e-6, T, 61)])
-    G = system.input_integral(grid)
-    s = _free_motion_scale(system, np.asarray(x0, dtype=float), T) + u_max * np.max(np.abs(G), axis=0)
-    return np.where(s > 0.0, s, 1.0)
-
-
-def _free_motion_scale(system, x0: np.ndarray, T: float) -> np.ndarray:
-    """How large the initial state alone makes each state over ``[0, T]``.
-
-    A mode's position and velocity share one vibration amplitude (a mode
-    released with speed only still swings), and an initial speed carries the
-    position along; for systems without that structure, ``|x0|``.
-    """
-    out = np.abs(x0).copy()
-    w = getattr(system, "w", None)
-    r = getattr(system, "r", None)
-    if w is None or r is None or out.size != r + 2 * np.size(w):
-        return out
-    if r == 2:
-        out[0] += abs(x0[1]) * T
-    q, qd = x0[r::2], x0[r + 1 :: 2]
-    amp = np.hypot(q, (qd + system.sig * q) / system.wd)
-    out[r::2] = np.maximum(out[r::2], amp)
-    out[r + 1 :: 2] = np.maximum(out[r + 1 :: 2], amp * w)
-    return out
 
 
 class Shooting:

@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from ..errors import FlexmotionError, SolverError
+from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import ModalModel
 from ..results import BangBangProfile
@@ -62,13 +62,13 @@ def check_order(value) -> int:
     """Validate ``robust_order`` (integer ``0..MAX_ORDER``)."""
     msg = f"must be an integer in [0, {MAX_ORDER}], got {value!r}"
     if isinstance(value, bool):
-        raise FlexmotionError("robust_order", msg)
+        raise InputError("robust_order", msg)
     try:
         f = float(value)
     except (TypeError, ValueError):
-        raise FlexmotionError("robust_order", msg) from None
+        raise InputError("robust_order", msg) from None
     if not (math.isfinite(f) and f.is_integer() and 0 <= f <= MAX_ORDER):
-        raise FlexmotionError("robust_order", msg)
+        raise InputError("robust_order", msg)
     return int(f)
 
 

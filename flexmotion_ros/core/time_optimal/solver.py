@@ -45,9 +45,11 @@ import numpy as np
 
 from ..errors import SolverError
 from ..model.boundary import MoveProblem
-from ..results import BangBangProfile, Certificate
+from ..results import BangBangProfile, Certificate, CertificateStatus, SolverPath
+from ..simulation.error_scale import relative_final_state_error
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
+from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
 from .certificate import certify
 from .reachable_set import (
@@ -208,13 +210,15 @@ def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: 
     return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
 
 
-def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
+def plan_time_optimal(problem: MoveProblem | PreparedMove) -> BangBangProfile:
     """Time-optimal bang-bang input for a move to rest, with certificate.
 
     Parameters
     ----------
-    problem : MoveProblem
-        Model, bound, initial state and target (see :mod:`.boundary`).
+    problem : MoveProblem or PreparedMove
+        Model, bound, initial state and target (see :mod:`.boundary`); a
+        :class:`~flexmotion_ros.core.simulation.prepared.PreparedMove` reuses
+        its responses (an attached optimum is not reused: this solves).
 
     Returns
     -------
@@ -226,12 +230,14 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
         If no profile passes the exact final-state check.
     """
     t0 = time.perf_counter()
+    move = prepare(problem)
+    problem = move.problem
     model, um = problem.model, problem.u_max
-    system = ModalResponse(model, problem.include_position)
-    x0 = problem.shifted_initial()
+    system = move.response
+    x0 = move.x0.copy()
     if not np.any(np.abs(x0) > AT_REST):
         profile = _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
-        profile.extra["solver_path"] = "at_rest"
+        profile.extra["solver_path"] = SolverPath.AT_REST
         return profile
     rigid = rigid_profile(model, um, x0, problem.include_position)
     T_low = rigid.duration
@@ -240,7 +246,7 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
         nu[: system.r] = rigid.nu
         roots = np.sort(T_low - rigid.switch_times)
         profile = _assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
-        profile.extra["solver_path"] = "rigid"
+        profile.extra["solver_path"] = SolverPath.RIGID
         return profile
     # a first guess: the rigid time plus a quarter period of the slowest mode
     T_init = T_low + (0.5 * math.pi / min(model.omega) if model.omega else 0.0)
@@ -255,7 +261,7 @@ def plan_time_optimal(problem: MoveProblem) -> BangBangProfile:
     # the full solver, exactly as without the fast path (``sh`` is untouched)
     nuh, T, roots, signs, _ = _solve(sh, T_lb, T_init, start)
     profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
-    profile.extra["solver_path"] = "full"
+    profile.extra["solver_path"] = SolverPath.FULL
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
     return profile
@@ -321,7 +327,7 @@ def _fast_path(
         except SolverError:  # the target missed: no structure information either
             return None, None, 0.0
         cert = profile.certificate
-        if cert.passed and cert.message == "ok":
+        if cert.status is CertificateStatus.OPTIMAL:
             return profile, None, 0.0
         return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
 
@@ -339,7 +345,7 @@ def _fast_path(
     except Exception as exc:  # noqa: BLE001 - whatever went wrong, the full solver decides
         return None, repr(exc)
     if profile is not None:
-        profile.extra["solver_path"] = "fast"
+        profile.extra["solver_path"] = SolverPath.FAST
         profile.extra["fast_path_candidates"] = candidates  # extremals certified (1 + structure corrections)
     return profile, None
 
@@ -367,11 +373,22 @@ def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_l
     xT = states[-1]
     scale = state_scale(system, x0s, um, T) if T > 0.0 else np.ones(xT.size)
     err = float(np.max(np.abs(xT))) if xT.size else 0.0
-    rel = float(np.max(np.abs(xT) / scale)) if xT.size else 0.0
+    rel = relative_final_state_error(xT, scale)
     if T > 0.0:
         cert = certify(system, nu, T, um, switch_times, levels, states, lower_bound=T_low)
     else:
-        cert = Certificate(True, np.zeros(system.n), np.zeros(system.n), 0.0, 0, 0, True, 1.0, 0.0, "already at rest")
+        cert = Certificate(
+            passed=True,
+            costate_initial=np.zeros(system.n),
+            costate_final=np.zeros(system.n),
+            switch_residual=0.0,
+            extra_zeros=0,
+            unproved_cells=0,
+            sign_consistent=True,
+            min_margin=1.0,
+            hamiltonian_max_abs=0.0,
+            message="already at rest",
+        )
     final_abs = _absolute_final(problem, u)
     profile = BangBangProfile(
         problem=problem,

@@ -27,6 +27,7 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
+from flexmotion_ros.core.friction.certificate import CLAIM
 from flexmotion_ros.core.friction.contact import (
     FrictionSystem,
     contact_at_coordinate,
@@ -309,6 +310,15 @@ def test_rigid_body_friction_optimum_is_the_closed_form():
     assert prof.duration == pytest.approx(T, rel=1e-13)
     assert prof.switch_times == pytest.approx([T * a2 / (a1 + a2)], rel=1e-13)
     assert rigid_friction_time(ModalModel(b0=b0), 1.0, F, [0.0, 0.0], gamma) == pytest.approx(T, rel=1e-15)
+
+
+def test_a_move_already_at_rest_reports_it_in_the_message_not_the_claim():
+    """Regression: the at-rest certificate was built positionally and its note landed in ``claim``."""
+    prof = plan_time_optimal_friction(rest_to_rest(WB, 1.0, 0.0, start=0.25), 0.3)
+    assert prof.duration == 0.0 and prof.switch_times.size == 0 and prof.certified
+    assert prof.certificate.message == "already at rest"
+    assert prof.certificate.claim == CLAIM
+    assert prof.to_dict()["certificate"]["message"] == "already at rest"
 
 
 def test_structure_change_is_followed_on_the_three_mode_beam():

@@ -265,3 +265,15 @@ def test_shaped_step_and_ramp_references():
     ramp = shape_function(lambda t: np.maximum(t, 0.0), s)
     late = s.duration + np.array([0.5, 3.0])
     assert ramp(late) == pytest.approx(late - s.amplitudes @ s.times, abs=1e-13)
+
+
+def test_the_shaper_table_is_the_one_list_of_shapers_and_methods():
+    from flexmotion_ros.core.methods import METHODS
+    from flexmotion_ros.core.shaping.shapers import SHAPER_TABLE
+
+    names = tuple(kind.name for kind in SHAPER_TABLE)
+    assert names == tuple(SHAPERS) and len(set(names)) == len(names)
+    assert set(names) <= set(METHODS)
+    for kind in SHAPER_TABLE:  # every row's unit sequence is a shaper: amplitudes sum to one, first impulse at 0
+        t, a = kind.unit(0.0, 0.05, 0.75)
+        assert t[0] == 0.0 and abs(float(np.sum(a)) - 1.0) < 1e-12, kind.name
