@@ -22,6 +22,7 @@ from ..core.design.problem import (
 )
 from ..core.design.space import PARAMETER_RANGES, DesignParameter
 from ..core.errors import InputError
+from ..core.parameters import check_parameters
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -123,6 +124,7 @@ def _grid(text: str | None, n: int):
 
 def run(args: argparse.Namespace) -> int:
     params = read_parameter_file(args.config, "flexmotion_planner")
+    check_parameters(params)  # unknown names and wrong ROS types: refused, as by plan and the nodes
     robust = None
     if (args.frequency_error is None) != (args.max_residual is None):
         raise InputError("frequency_error", "give both --frequency-error and --max-residual, or neither")

@@ -20,7 +20,31 @@ from . import compare_cmd, demo_cmd, design_cmd, model_cmd, plan_cmd, shaper_cmd
 COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd)
 
 
+class _NegativeNumber:
+    """Matches every negative number ``float()`` reads (``-5.03e-05``, ``-1E3``, ``-.5``, ``-inf``).
+
+    argparse's own pattern (``-1``, ``-1.5`` only) takes ``-5.03e-05`` for an
+    option and fails with "expected one argument"; every parser of the
+    command line uses this one instead (:class:`_Parser`).
+    """
+
+    def match(self, text: str) -> bool:
+        if not text.startswith("-") or "_" in text:
+            return False
+        try:
+            float(text)
+        except ValueError:
+            return False
+        return True
+
+
 class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (exit 2) and whose options take any negative number."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NegativeNumber()
+
     def error(self, message: str) -> None:  # one line, exit 2
         sys.stderr.write(f"flexmotion: error: {message}\n")
         raise SystemExit(2)

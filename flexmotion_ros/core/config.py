@@ -15,8 +15,12 @@ The same file serves ``flexmotion plan --config FILE`` and the nodes
         rate_hz: 1000.0
 
 Nested keys are ROS parameter names with dots (``model.b0``).  This module
-reads and writes that format without ROS; the nodes map their declared
-parameters through :func:`config_from_parameters` too, so both validate alike.
+reads and writes that format without ROS, typing every value by rcl's own
+rules (:func:`~flexmotion_ros.core.parameters.rcl_scalar`: ``1`` is an
+integer, ``1.0`` a double) so that ``flexmotion plan`` and the nodes see the
+same types; :func:`load_config` then refuses unknown names and wrong types
+(:func:`~flexmotion_ros.core.parameters.check_parameters`, the check the nodes
+run on their start-up parameters too) before building the configuration.
 """
 
 from __future__ import annotations
@@ -31,6 +35,15 @@ import yaml
 
 from .errors import ConfigError
 from .model.modal_model import ModalModel, check_positive
+from .parameters import (
+    KNOWN_PREFIXES,
+    MAX_MOVE_DURATION_S,
+    NODE_NAMES,
+    check_parameters,
+    check_required_options,
+    rcl_scalar,
+    ros_type,
+)
 from .shaping.shapers import SHAPERS
 
 #: The planning methods, in the order of :data:`~flexmotion_ros.core.methods.METHODS` (which
@@ -56,28 +69,15 @@ DEFAULTS: dict[str, Any] = {
     "method": "time_optimal",
     "limits.position_min": -math.inf,
     "limits.position_max": math.inf,
+    "max_move_duration_s": MAX_MOVE_DURATION_S,
 }
 
 
 #: Parameters in a shared file that belong to the nodes, the plant, rclpy or
-#: the design command, never to a planning method.
-NOT_OPTION_PREFIXES = ("plant.", "design.", "qos_overrides.")
-NOT_OPTIONS = frozenset(
-    {
-        "lockstep",
-        "command_timeout",
-        "publish_rate_hz",
-        "publish_hold_when_idle",
-        "stream_priority",
-        "initial_position",
-        "replan_lead_s",
-        "max_trajectory_points",
-        "frame_id",
-        "diagnostics_period_s",
-        "use_sim_time",
-        "start_type_description_service",
-    }
-)
+#: the design command, never to a planning method (from the registry,
+#: :mod:`flexmotion_ros.core.parameters`).
+NOT_OPTION_PREFIXES = ("plant.", *KNOWN_PREFIXES)
+NOT_OPTIONS = NODE_NAMES
 
 
 @dataclass(frozen=True)
@@ -95,6 +95,9 @@ class PlannerConfig:
         Profile type (one of :data:`METHOD_NAMES`).
     position_min, position_max : float
         Allowed goal positions (m or rad); infinite means no limit.
+    max_move_duration_s : float
+        Longest move a goal may ask for (s, > 0): a goal whose rigid-body
+        minimum time exceeds it is refused before planning.
     options : dict
         Method-specific parameters (dotted names), validated by their method.
     """
@@ -106,6 +109,7 @@ class PlannerConfig:
     position_min: float = -math.inf
     position_max: float = math.inf
     options: dict = field(default_factory=dict)
+    max_move_duration_s: float = MAX_MOVE_DURATION_S
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u_max", check_positive("u_max", self.u_max))
@@ -117,6 +121,17 @@ class PlannerConfig:
             raise ConfigError("limits.position_min/position_max", f"need position_min < position_max, got [{lo}, {hi}]")
         object.__setattr__(self, "position_min", lo)
         object.__setattr__(self, "position_max", hi)
+        budget = self.max_move_duration_s
+        try:
+            budget = float(budget)
+        except (TypeError, ValueError):
+            budget = math.nan
+        if not (math.isfinite(budget) and budget > 0.0):
+            raise ConfigError(
+                "max_move_duration_s", f"must be a finite duration > 0 s, got {self.max_move_duration_s!r}"
+            )
+        object.__setattr__(self, "max_move_duration_s", budget)
+        check_required_options(self.method, self.options)
 
     def check_goal(self, target: float) -> float:
         """Return ``target`` if finite and inside the position limits, else raise."""
@@ -146,6 +161,7 @@ class PlannerConfig:
                 "method": self.method,
                 "limits.position_min": self.position_min,
                 "limits.position_max": self.position_max,
+                "max_move_duration_s": self.max_move_duration_s,
             }
         )
         p.update(self.options)
@@ -216,12 +232,18 @@ def unflatten(params: Mapping[str, Any]) -> dict[str, Any]:
 def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
     """Build and validate a :class:`PlannerConfig` from flat ROS parameters.
 
-    Missing names take :data:`DEFAULTS`; other names are kept in ``options``
-    for the methods to validate, except those of the nodes, the plant and the
-    design command (:data:`NOT_OPTIONS`, :data:`NOT_OPTION_PREFIXES`).
+    Missing (or unset: ``None``) names take :data:`DEFAULTS`; the names of
+    the nodes, the plant, rclpy and the design command are dropped
+    (:data:`NOT_OPTIONS`, :data:`NOT_OPTION_PREFIXES`); the other names are
+    kept in ``options`` for the methods to validate.  This is the Python
+    entry point and does not judge names or types: a parameter set from a
+    file, ``--option`` or a node goes through
+    :func:`~flexmotion_ros.core.parameters.check_parameters` first
+    (:func:`load_config` and the nodes do), which refuses unknown names and
+    wrong ROS types.
     """
     p = dict(DEFAULTS)
-    p.update(params)
+    p.update({k: v for k, v in params.items() if v is not None})
     model = ModalModel(
         b0=p["model.b0"],
         c=p["model.c"],
@@ -232,7 +254,10 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
     options = {
         k: v
         for k, v in p.items()
-        if k not in DEFAULTS and k not in NOT_OPTIONS and not k.startswith(NOT_OPTION_PREFIXES)
+        if k not in DEFAULTS
+        and k not in NOT_OPTIONS
+        and not k.startswith(NOT_OPTION_PREFIXES)
+        and not (isinstance(v, (list, tuple)) and not v)  # an empty list is unset, as in rcl
     }
     return PlannerConfig(
         model=model,
@@ -242,27 +267,106 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         position_min=p["limits.position_min"],
         position_max=p["limits.position_max"],
         options=options,
+        max_move_duration_s=p["max_move_duration_s"],
     )
 
 
-def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[str, Any]:
-    """Flat parameters from a ROS 2 parameter YAML file.
+def _yaml_error(path: Path, exc: yaml.YAMLError, parameter: str) -> ConfigError:
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    return ConfigError(parameter, f"{path} is not valid YAML{where}: {problem}")
+
+
+def _typed_tree(node: yaml.Node, name: str, path: Path, parameter: str) -> Any:
+    """A composed YAML node as rcl reads it: mappings nest, scalars and sequences are typed."""
+    line = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        out: dict[str, Any] = {}
+        for key, value in node.value:
+            if not isinstance(key, yaml.ScalarNode):
+                raise ConfigError(parameter, f"{path}: a key must be a name (line {key.start_mark.line + 1})")
+            out[key.value] = _typed_tree(value, f"{name}.{key.value}" if name else key.value, path, parameter)
+        return out if out else None  # 'x: {}' declares x with no value in rcl
+    if isinstance(node, yaml.SequenceNode):
+        items: list[Any] = []
+        stack = list(node.value)
+        while stack:  # rcl flattens nested sequences
+            item = stack.pop(0)
+            if isinstance(item, yaml.SequenceNode):
+                stack[:0] = list(item.value)
+                continue
+            if not isinstance(item, yaml.ScalarNode):
+                raise ConfigError(name, f"{path}: a list holds values only (line {item.start_mark.line + 1})")
+            items.append(_scalar(item, name, path))
+        try:
+            ros_type(items)
+        except TypeError:
+            kinds = ", ".join(dict.fromkeys(str(ros_type(v).value) for v in items))
+            raise ConfigError(
+                name,
+                f"{path} line {line}: list items must all have one type (ROS arrays are homogeneous; "
+                f"write doubles as 2.0, not 2), got {kinds}",
+            ) from None
+        return items
+    return _scalar(node, name, path)
+
+
+def _scalar(node: yaml.Node, name: str, path: Path) -> Any:
+    quoted = node.style in ("'", '"')
+    if not quoted and node.value == "":
+        raise ConfigError(name, f"{path}: no value at line {node.start_mark.line + 1}")
+    return rcl_scalar(node.value, quoted)
+
+
+def read_parameter_sections(path: str | Path, parameter: str = "config") -> dict[str, dict[str, Any]]:
+    """Every section of a ROS 2 parameter file: ``{node name: flat typed ros__parameters}``.
+
+    Values are typed by rcl's rules (:func:`~flexmotion_ros.core.parameters.rcl_scalar`);
+    a value rcl refuses (no value, a mixed list), a YAML syntax error or an
+    unreadable file raises :class:`ConfigError` naming ``parameter``, the
+    file and, for syntax errors, the line and column.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(parameter, f"file not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(parameter, f"{path} is a directory, not a parameter file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(parameter, f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        raise _yaml_error(path, exc, parameter) from None
+    if not isinstance(root, yaml.MappingNode):
+        raise ConfigError(parameter, f"{path}: expected a mapping of node names to ros__parameters")
+    sections: dict[str, dict[str, Any]] = {}
+    for key, value in root.value:
+        if not isinstance(key, yaml.ScalarNode) or not isinstance(value, yaml.MappingNode):
+            raise ConfigError(parameter, f"{path}: expected a mapping of node names to ros__parameters")
+        for sub_key, sub in value.value:
+            if isinstance(sub_key, yaml.ScalarNode) and sub_key.value == "ros__parameters":
+                if not isinstance(sub, yaml.MappingNode):
+                    raise ConfigError(
+                        parameter,
+                        f"{path}: 'ros__parameters' of '{key.value}' must be a mapping of parameter names to values "
+                        f"(line {sub.start_mark.line + 1})",
+                    )
+                tree = _typed_tree(sub, "", path, parameter)
+                sections.setdefault(key.value, {}).update(flatten(tree or {}))
+    return sections
+
+
+def read_parameter_file(path: str | Path, node_name: str | None = None, parameter: str = "config") -> dict[str, Any]:
+    """Flat parameters from a ROS 2 parameter YAML file, typed by rcl's rules.
 
     Takes the ``ros__parameters`` of ``/**`` (wildcard) and, if given, of
     ``node_name`` (which override the wildcard), as ROS does.
     """
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError("config", f"file not found: {path}") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ConfigError("config", f"{path} is not valid YAML{where}: {problem}") from None
-    if not isinstance(data, Mapping):
-        raise ConfigError("config", f"{path}: expected a mapping of node names to ros__parameters")
+    data = read_parameter_sections(path, parameter)
     params: dict[str, Any] = {}
     keys = ["/**", "**"]
     if node_name:
@@ -270,18 +374,19 @@ def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[
         keys += [bare, "/" + bare]  # ROS matches 'node' and '/node' alike
     found = False
     for key in keys:
-        section = data.get(key)
-        if isinstance(section, Mapping) and isinstance(section.get("ros__parameters"), Mapping):
-            params.update(flatten(section["ros__parameters"]))
+        if key in data:
+            params.update(data[key])
             found = True
     if not found:
-        raise ConfigError("config", f"{path}: no '/**: ros__parameters:' section")
+        raise ConfigError(parameter, f"{path}: no '/**: ros__parameters:' section")
     return params
 
 
 def load_config(path: str | Path, node_name: str | None = "flexmotion_planner") -> PlannerConfig:
-    """Read and validate a planner configuration from a ROS 2 parameter file."""
-    return config_from_parameters(read_parameter_file(path, node_name))
+    """Read, check (names and ROS types) and validate a planner configuration from a ROS 2 parameter file."""
+    params = read_parameter_file(path, node_name)
+    check_parameters(params)
+    return config_from_parameters(params)
 
 
 class _Dumper(yaml.SafeDumper):
@@ -323,9 +428,11 @@ _INT_PARAMS = {"robust_order", "design.force_on", "fuel_curve.points"}
 
 
 def write_config(path: str | Path, config: PlannerConfig, header: str = "") -> None:
-    """Write ``config`` as a ROS 2 parameter file (finite limits only)."""
+    """Write ``config`` as a ROS 2 parameter file (finite limits only, the move budget if not the default)."""
     params = config.to_parameters()
     for key in ("limits.position_min", "limits.position_max"):
         if not math.isfinite(params[key]):
             del params[key]
+    if params["max_move_duration_s"] == MAX_MOVE_DURATION_S:
+        del params["max_move_duration_s"]
     Path(path).write_text(dump_parameters(params, header))

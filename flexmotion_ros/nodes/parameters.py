@@ -43,6 +43,7 @@ from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
 from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
 from ..core.model.modal_model import ModalModel
+from ..core.parameters import METHOD_OPTIONS, check_name, check_type, required_options
 
 INF = math.inf
 
@@ -122,8 +123,15 @@ def _model_specs(read_only: bool) -> list[Spec]:
 
 
 def _method_description() -> str:
-
-    return "profile type, one of: " + ", ".join(sorted(METHODS)) + ". A change applies to the next goal."
+    needs = "; ".join(
+        f"{m} needs {', '.join(o.name for o in required_options(m))}" for m in METHODS if required_options(m)
+    )
+    return (
+        "profile type, one of: "
+        + ", ".join(sorted(METHODS))
+        + f". A change applies to the next goal; a method whose required options are unset is refused ({needs}: "
+        "set them in the same atomic call)."
+    )
 
 
 def planner_specs() -> list[Spec]:
@@ -152,6 +160,13 @@ def planner_specs() -> list[Spec]:
             "limits.position_max",
             DEFAULTS["limits.position_max"],
             "highest goal position accepted (m or rad); inf: no limit.",
+        ),
+        Spec(
+            "max_move_duration_s",
+            DEFAULTS["max_move_duration_s"],
+            "longest move (s) a goal may ask for, > 0: a goal whose rigid-body minimum time exceeds it is refused "
+            "before planning (e.g. a goal of 1e300). A change applies to the next goal.",
+            fp_range=(0.0, 1e9),
         ),
         Spec(
             "publish_hold_when_idle",
@@ -193,6 +208,56 @@ def planner_specs() -> list[Spec]:
             read_only=True,
             fp_range=(0.01, 3600.0),
         ),
+        *_goal_specs(),
+    ]
+
+
+def _goal_specs() -> list[Spec]:
+    """The planner's joint, measured start state and trajectory-goal parameters (all fixed at start-up)."""
+    return [
+        Spec(
+            "joint_name",
+            "rigid_body",
+            "the joint this planner moves: ~/joint_trajectory goals must name it (others are refused), and the "
+            "rigid body's name in the measured joint_states. Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "state.source",
+            "measured",
+            "start state of a move from idle: 'measured' (the last joint_states, refused if missing or older than "
+            "state.timeout_s) or 'assumed' (at rest at initial_position, then where the last plan ended; open loop). "
+            "Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "state.topic",
+            "joint_states",
+            "sensor_msgs/JointState topic of the machine's measured state (position, velocity per joint). Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "state.mode_joint_names",
+            Parameter.Type.STRING_ARRAY,
+            "joints of the measured state holding the modal coordinates, one per mode; empty: mode_1 ... mode_N. "
+            "Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "state.timeout_s",
+            0.5,
+            "a measured state received longer ago than this (s) is stale: a goal waits this long for a fresh one, "
+            "then is refused, in (0, 3600]. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 3600.0),
+        ),
+        Spec(
+            "trajectory.early_arrival",
+            "refuse",
+            "a ~/joint_trajectory whose last time_from_start is before the time-optimal arrival: 'refuse' it, or "
+            "take the 'optimum' (arrive as fast as possible). Fixed at start-up.",
+            read_only=True,
+        ),
     ]
 
 
@@ -206,6 +271,12 @@ PLANNER_NODE_ONLY = frozenset(
         "max_trajectory_points",
         "frame_id",
         "diagnostics_period_s",
+        "joint_name",
+        "state.source",
+        "state.topic",
+        "state.mode_joint_names",
+        "state.timeout_s",
+        "trajectory.early_arrival",
     }
 )
 
@@ -268,6 +339,16 @@ def plant_specs() -> list[Spec]:
             "initial rigid-body position (m or rad), at rest. Fixed at start-up.",
             read_only=True,
         ),
+        Spec(
+            "plant.idle_state_period_s",
+            0.1,
+            "lockstep: while no command has arrived for this long (s), publish the current state on joint_states "
+            "this often as a best-effort heartbeat (a reliable subscriber still gets exactly one state per command; "
+            "the planner's best-effort measured-state subscription sees the machine alive while idle); 0: never. "
+            "Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 3600.0),
+        ),
     ]
 
 
@@ -286,8 +367,25 @@ def plain(value: Any) -> Any:
     return value
 
 
+def check_overrides(node: Node, extra: Iterable[str] = ()) -> None:
+    """The start-up parameters (file, ``-p``, constructor) judged as ``flexmotion plan`` judges a file.
+
+    Every name must be in the core registry (:mod:`flexmotion_ros.core.parameters`) or in
+    ``extra`` (the node's own declarations), every registered value of its ROS type: an
+    unknown name raises :class:`ConfigError` with the closest known name, a wrong type
+    names the key (e.g. ``u_max: 1``: write ``1.0``), with the same text as the command line.
+    """
+    extra = set(extra)
+    for name, value in sorted(parameter_overrides(node).items()):
+        if not node.has_parameter(name):  # declared already: known to this node
+            check_name(name, extra)
+        check_type(name, value)
+
+
 def declare(node: Node, specs: Iterable[Spec]) -> None:
-    """Declare ``specs`` on ``node``; a bad value in the parameter file raises :class:`ConfigError`."""
+    """Declare ``specs`` on ``node``; a bad or unknown name in the parameter file raises :class:`ConfigError`."""
+    specs = list(specs)
+    check_overrides(node, [s.name for s in specs])
     for spec in specs:
         try:
             node.declare_parameter(spec.name, spec.default, spec.descriptor())
@@ -321,31 +419,39 @@ def parameter_overrides(node: Node) -> dict[str, Any]:
     return {name: plain(p.value) for name, p in overrides.items()}
 
 
-def declare_method_options(node: Node, known: Iterable[str]) -> list[str]:
-    """Declare the parameter file's remaining names as method options (e.g. ``robust_order``).
+def option_specs() -> list[Spec]:
+    """Every method option of the core registry (:data:`~flexmotion_ros.core.parameters.METHOD_OPTIONS`).
 
-    Names of the plant and of rclpy are skipped.  Returns the declared names.
+    Declared with their ROS type and no value: unset unless the parameter file
+    (or a later set) gives one, so that the node's options are exactly those of
+    ``flexmotion plan --config`` on the same file.
+    """
+    specs = []
+    for o in METHOD_OPTIONS:
+        required = f"; required by {', '.join(o.required_by)}" if o.required_by else ""
+        specs.append(
+            Spec(
+                o.name,
+                Parameter.Type[o.type.name],
+                f"option of the planning method (see 'method'): {o.description} ({o.allowed}); read by "
+                f"{', '.join(o.methods)}{required}; unset: the method's default. A change applies to the next goal.",
+            )
+        )
+    return specs
+
+
+def declare_method_options(node: Node, known: Iterable[str]) -> list[str]:
+    """Declare every method option (:func:`option_specs`) not in ``known``; return their names.
+
+    Declared up front with descriptors, so that ``ros2 param set`` can give a
+    method its options (``method`` with ``coulomb_force`` in one atomic call).
+    The start-up parameters were checked by :func:`declare` (unknown names and
+    wrong types refused).
     """
     known = set(known)
-    names = []
-    for name, value in sorted(parameter_overrides(node).items()):
-        if (
-            name in known
-            or node.has_parameter(name)
-            or name in PLANT_ONLY_NAMES
-            or name.startswith(PLANT_ONLY_PREFIXES)
-        ):
-            continue
-        if value is None:
-            continue
-        spec = Spec(
-            name,
-            value,
-            "option of the planning method (see 'method'); validated by the method. A change applies to the next goal.",
-        )
-        declare(node, [spec])
-        names.append(name)
-    return names
+    specs = [s for s in option_specs() if s.name not in known and not node.has_parameter(s.name)]
+    declare(node, specs)
+    return [s.name for s in specs]
 
 
 def planner_config(values: Mapping[str, Any]) -> PlannerConfig:

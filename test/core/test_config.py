@@ -177,13 +177,175 @@ def test_node_section_alone(tmp_path):
     assert exc.value.parameter == "config" and "ros__parameters" in exc.value.reason
 
 
-def test_unknown_parameters_go_to_options(tmp_path):
+def test_method_options_go_to_options_and_node_names_are_known(tmp_path):
     path = write(
         tmp_path,
-        "/**:\n  ros__parameters:\n    robust_order: 2\n    shaper: {kind: zv}\n",
+        "/**:\n  ros__parameters:\n    robust_order: 2\n    shaper: {multimode: direct}\n    lockstep: true\n"
+        "    plant: {omega_scale: [1.1]}\n    design: {builder: two_mass}\n    use_sim_time: false\n"
+        "    qos_overrides: {/commands: {publisher: {depth: 10}}}\n    joint_name: cart\n",
     )
     cfg = load_config(path)
-    assert cfg.options == {"robust_order": 2, "shaper.kind": "zv"}
+    assert cfg.options == {"robust_order": 2, "shaper.multimode": "direct"}
+
+
+# ------------------------------------------------------------ strict names and types (issue 11)
+@pytest.mark.parametrize(
+    "body, name, closest",
+    [
+        ("u_mx: 5.0", "u_mx", "u_max"),
+        ("shaper: {tolerence: 0.2}", "shaper.tolerence", "shaper.tolerance"),
+        ("colomb_force: 0.1", "colomb_force", "coulomb_force"),
+        ("limits: {velocity: 1.0}", "limits.velocity", "limits.velocity_max"),
+        ("model: {omgea: [1.0]}", "model.omgea", "model.omega"),
+        ("lockstepp: true", "lockstepp", "lockstep"),
+    ],
+)
+def test_unknown_names_are_refused_with_the_closest_known_name(tmp_path, body, name, closest):
+    """Old main: ``u_mx: 5.0`` went to ``options`` and the move was planned with u_max 1.0."""
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    " + body + "\n")
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert exc.value.parameter == name
+    assert f"did you mean {closest}?" in exc.value.reason
+
+
+@pytest.mark.parametrize(
+    "body, name, fragment",
+    [
+        ("u_max: 1", "u_max", "write 1.0"),
+        ("rate_hz: 1000", "rate_hz", "write 1000.0"),
+        ("model: {b0: 1, omega: [1.0], zeta: [0.0], b: [1.0]}", "model.b0", "write 1.0"),
+        ("model: {omega: [1, 2], zeta: [0.0, 0.0], b: [1.0, 1.0]}", "model.omega", "must be a double array"),
+        ("model: {omega: [1, 2], zeta: [0.0, 0.0], b: [1.0, 1.0]}", "model.omega", "write [1.0, 2.0]"),
+        ("coulomb_force: 0", "coulomb_force", "write 0.0"),
+        ("robust_order: 1.0", "robust_order", "must be an integer"),
+        ("method: 1", "method", "must be a string"),
+        ("u_max: abc", "u_max", "must be a double"),
+        ("u_max: null", "u_max", "the string 'null'"),  # rcl types null as a string
+        ("limits: {report_each: maybe}", "limits.report_each", "must be a bool"),
+    ],
+)
+def test_values_must_have_their_ros_type(tmp_path, body, name, fragment):
+    """One verdict with the node: an integer where a double is declared is refused (rclpy refuses it too)."""
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    " + body + "\n")
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert exc.value.parameter == name
+    assert fragment in exc.value.reason, exc.value.reason
+
+
+@pytest.mark.parametrize(
+    "body, fragment",
+    [
+        ("u_max: [1, 2.0]", "list items must all have one type"),
+        ("u_max:", "no value at line 3"),
+        ("u_max: [1.0\n", "not valid YAML at line 5, column 1"),
+    ],
+)
+def test_what_rcl_refuses_is_refused(tmp_path, body, fragment):
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    " + body + "\n")
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert fragment in exc.value.reason, exc.value.reason
+    assert "\n" not in str(exc.value)
+
+
+# What rcl_yaml_param_parser made of each plain scalar (measured with rclpy.init(--params-file) on Jazzy;
+# test/ros/test_parameters.py compares the two live).
+RCL_SCALARS = [
+    ("1", 1),
+    ("-3", -3),
+    ("+5", 5),
+    ("0x10", 16),
+    ("010", 8),
+    ("1.0", 1.0),
+    ("1.", 1.0),
+    (".5", 0.5),
+    ("1e3", 1000.0),
+    ("1E3", 1000.0),
+    ("-5.03e-05", -5.03e-05),
+    ("123456789012345678901234567890", 1.2345678901234568e29),
+    (".inf", math.inf),
+    ("-.inf", -math.inf),
+    ("Infinity", math.inf),
+    ("true", True),
+    ("Yes", True),
+    ("y", True),
+    ("off", False),
+    ("abc", "abc"),
+    ("null", "null"),
+    ("~", "~"),
+    ("1_000", "1_000"),
+    ("1e400", "1e400"),
+    ("0o10", "0o10"),
+    ("2001-01-01", "2001-01-01"),
+]
+
+
+@pytest.mark.parametrize("text, value", RCL_SCALARS)
+def test_scalars_are_typed_as_rcl_types_them(text, value):
+    from flexmotion_ros.core.parameters import rcl_scalar
+
+    got = rcl_scalar(text)
+    assert type(got) is type(value) and got == value
+    assert rcl_scalar(text, quoted=True) == text  # a quoted scalar is a string
+
+
+def test_nan_and_quoted_values(tmp_path):
+    flat = read_parameter_file(write(tmp_path, "/**:\n  ros__parameters:\n    a: .nan\n    b: '1.0'\n    c: []\n"))
+    assert math.isnan(flat["a"]) and flat["b"] == "1.0" and flat["c"] == []
+
+
+def test_a_method_without_its_required_option_is_refused_by_the_configuration():
+    """Old main built the configuration and refused every goal later (``ros2 param set method ...`` succeeded)."""
+    base = {"model.b0": 0.5, "model.omega": [1.0], "model.zeta": [0.0], "model.b": [1.0]}
+    with pytest.raises(ConfigError) as exc:
+        config_from_parameters({**base, "method": "time_optimal_friction"})
+    assert exc.value.parameter == "coulomb_force" and "required by method time_optimal_friction" in exc.value.reason
+    with pytest.raises(ConfigError) as exc:
+        config_from_parameters({**base, "method": "fixed_time"})
+    assert exc.value.parameter == "arrival_time"
+    cfg = config_from_parameters({**base, "method": "time_optimal_friction", "coulomb_force": 0.1})
+    with pytest.raises(ConfigError):
+        cfg.with_changes(method="fixed_time")
+
+
+def test_a_directory_is_not_a_parameter_file(tmp_path):
+    with pytest.raises(ConfigError) as exc:
+        load_config(tmp_path)
+    assert exc.value.parameter == "config" and "is a directory" in exc.value.reason
+
+
+def test_a_goal_beyond_the_move_budget_is_refused_before_planning():
+    """Old main: ``--goal 1e300`` ended in numpy's ValueError (Maximum allowed size exceeded)."""
+    from flexmotion_ros.core.methods.table import plan_move
+    from flexmotion_ros.core.model.boundary import motion_to_rest, rest_to_rest
+
+    cfg = load_config(CONFIG_DIR / "wie_bernstein.yaml")
+    assert cfg.max_move_duration_s == 3600.0
+    for problem in (rest_to_rest(cfg.model, cfg.u_max, 1e300), motion_to_rest(cfg.model, cfg.u_max, 1e200)):
+        with pytest.raises(GoalError) as exc:
+            plan_move(cfg, problem)
+        assert exc.value.parameter == "goal" and "max_move_duration_s = 3600 s" in exc.value.reason
+    small = cfg.with_changes(max_move_duration_s=2.0)  # the unit move needs at least 2.83 s (rigid body)
+    with pytest.raises(GoalError, match="2.828 s"):
+        plan_move(small, rest_to_rest(cfg.model, cfg.u_max, 1.0))
+    assert plan_move(cfg.with_changes(max_move_duration_s=5.0), rest_to_rest(cfg.model, cfg.u_max, 1.0)).continuous
+    for bad in (0.0, -1.0, math.inf, math.nan):
+        with pytest.raises(ConfigError) as exc:
+            cfg.with_changes(max_move_duration_s=bad)
+        assert exc.value.parameter == "max_move_duration_s"
+
+
+def test_every_method_option_is_registered_with_its_methods():
+    from flexmotion_ros.core.methods import METHODS
+    from flexmotion_ros.core.parameters import METHOD_OPTIONS, required_options
+
+    assert {o.name for m in METHODS.values() for o in m.options} == {o.name for o in METHOD_OPTIONS}
+    assert [o.name for o in required_options("time_optimal_friction")] == ["coulomb_force"]
+    assert [o.name for o in required_options("fixed_time")] == ["arrival_time"]
+    for o in METHOD_OPTIONS:
+        assert set(o.methods) <= set(METHODS) and set(o.required_by) <= set(o.methods), o.name
 
 
 # ------------------------------------------------------------------ errors
@@ -217,7 +379,7 @@ def test_bad_files(tmp_path, text, fragment):
     [
         ("u_max: -1.0", "u_max", "> 0"),
         ("u_max: .nan", "u_max", "finite"),
-        ("u_max: abc", "u_max", "finite"),
+        ("u_max: abc", "u_max", "must be a double"),
         ("rate_hz: 0.0", "rate_hz", "> 0"),
         ("rate_hz: 2.0e+6", "rate_hz", "1e6"),
         ("method: warp_drive", "method", "time_optimal"),

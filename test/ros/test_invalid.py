@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
@@ -61,7 +64,7 @@ def test_bad_goal_is_refused_nothing_moves_node_keeps_serving(ros, goal, words):
 
 def test_goal_the_planner_cannot_serve_is_refused(ros):
     """A move needing over 5e6 samples at the rate: refused by the core with the reason."""
-    planner = ros.planner(rate_hz=2e5)
+    planner = ros.planner(rate_hz=2e5, **{"state.source": "assumed"})  # no plant: plan from the assumed state
     ros.connected(planner, subscribers=1)
     resp = ros.call(ros.probe.move, goal_request(2000.0))  # 28 s at 200 kHz
     assert not resp.plan.poses and "rate_hz" in messages.path_error(resp.plan), resp.plan.header.frame_id
@@ -133,8 +136,16 @@ def test_invalid_start_up_parameters_raise_with_the_name(ros):
 
     with pytest.raises(FlexmotionError, match=r"model\.zeta\[1\]"):
         planner(**{"model.zeta": [0.01, 2.0]})
-    with pytest.raises(FlexmotionError, match=r"u_max: wrong type \(write doubles as 2.0"):
-        planner(u_max=2)
+    with pytest.raises(FlexmotionError, match=r"u_max: must be a double .*, got the integer 2: write 2.0"):
+        planner(u_max=2)  # the same line as `flexmotion plan` on a file with `u_max: 2`
+    with pytest.raises(FlexmotionError, match=r"u_mx: unknown parameter; did you mean u_max\?"):
+        planner(u_mx=5.0)  # old main: ignored, planned with u_max 10
+    with pytest.raises(FlexmotionError, match=r"colomb_force: unknown parameter; did you mean coulomb_force\?"):
+        planner(method="time_optimal_friction", colomb_force=0.1)
+    with pytest.raises(FlexmotionError, match=r"coulomb_force: required by method time_optimal_friction"):
+        planner(method="time_optimal_friction")
+    with pytest.raises(FlexmotionError, match=r"lockstepp: unknown parameter; did you mean lockstep\?"):
+        plant(lockstepp=True)  # the plant judges the shared file the same way
     with pytest.raises(FlexmotionError, match=r"plant\.omega_scale: needs one factor per mode \(2\)"):
         plant(**{"plant.omega_scale": [1.1]})
     with pytest.raises(FlexmotionError, match=r"plant\.extra_zeta\[0\]"):
@@ -152,3 +163,69 @@ def test_plant_refuses_invalid_live_changes(ros):
     assert not res.successful
     res = plant.set_parameters([Parameter("plant.omega_scale", value=[1.2, 1.0])])[0]
     assert res.successful and plant.cfg.model.omega == (6.0, 13.0)
+
+
+# ------------------------------------------------------------ strict configuration (issue 11)
+def test_a_method_change_without_its_required_option_is_refused_and_changes_nothing(ros):
+    """Old main: ``ros2 param set method time_optimal_friction`` succeeded, then every goal was refused."""
+    planner = ros.planner(**{"state.source": "assumed"})
+    ros.connected(planner, subscribers=1)
+    before = planner.config
+    (res,) = _set(ros, {"method": "time_optimal_friction"})
+    assert not res.successful
+    assert "coulomb_force: required by method time_optimal_friction" in res.reason, res.reason
+    assert planner.config == before and planner.get_parameter("method").value == "time_optimal"
+    # every option is declared up front with a descriptor: method and option in one atomic set
+    d = planner.describe_parameter("coulomb_force")
+    assert "required by time_optimal_friction" in d.description and "N, in [0, u_max)" in d.description
+    (res,) = _set(ros, {"method": "time_optimal_friction", "coulomb_force": 0.1}, atomically=True)
+    assert res.successful, res.reason
+    assert planner.config.method == "time_optimal_friction" and planner.config.options == {"coulomb_force": 0.1}
+    resp = ros.call(ros.probe.plan, goal_request(0.5))
+    assert resp.plan.poses, resp.plan.header.frame_id
+    (res,) = _set(ros, {"coulomb_force": 1})  # an integer where a double is declared: rclpy refuses it too
+    assert not res.successful and planner.config.options == {"coulomb_force": 0.1}
+
+
+def test_a_goal_beyond_the_move_budget_is_refused_up_front(ros):
+    """Old main: ``goal 1e300`` failed deep in numpy (Maximum allowed size exceeded)."""
+    planner = ros.planner(**{"state.source": "assumed"})
+    ros.connected(planner, subscribers=1)
+    resp = ros.call(ros.probe.plan, goal_request(1e300))
+    reason = messages.path_error(resp.plan) or ""
+    assert not resp.plan.poses and "goal: the move needs at least" in reason and "max_move_duration_s" in reason
+    (res,) = _set(ros, {"max_move_duration_s": 0.5})  # the budget is a parameter: 1.0 needs >= 0.63 s
+    assert res.successful, res.reason
+    assert "max_move_duration_s = 0.5 s" in (
+        messages.path_error(ros.call(ros.probe.plan, goal_request(1.0)).plan) or ""
+    )
+    assert ros.call(ros.probe.plan, goal_request(0.1)).plan.poses
+    assert not planner.installed and not ros.probe.commands
+
+
+def _start_planner(params_file: Path, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "flexmotion_ros.nodes.planner_node", "--ros-args", "--params-file", str(params_file)]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize(
+    "body, fragments",
+    [
+        ("    u_max: 1.0\n   rate_hz: [1.0\n", ["--params-file:", "is not valid YAML at line 4, column 4"]),
+        ("    model:\n      omega: [1, 2.0]\n", ["model.omega:", "list items must all have one type"]),
+        ("    u_mx: 5.0\n", ["u_mx: unknown parameter; did you mean u_max?"]),
+        ("    u_max: 1\n", ["u_max: must be a double", "write 1.0"]),
+    ],
+)
+def test_the_executable_refuses_a_bad_parameter_file_in_one_line(tmp_path, body, fragments):
+    """Old main: a YAML syntax error was an rcl traceback (exit 1); a typo or ``u_max: 1`` in a key was
+    started with the default (the node kept running: the time-out below)."""
+    path = tmp_path / "bad.yaml"
+    path.write_text("/**:\n  ros__parameters:\n" + body)
+    done = _start_planner(path)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("flexmotion_planner: error: ") and done.stderr.count("\n") == 1, done.stderr
+    assert "Traceback" not in done.stderr and done.stdout == ""
+    for f in fragments:
+        assert f in done.stderr, done.stderr
+    assert str(path) in done.stderr or "unknown" in done.stderr or "must be" in done.stderr

@@ -1,4 +1,4 @@
-"""What several methods share: required and numeric options, the planning rate, sampled-only results."""
+"""What several methods share: required and numeric options, the move budget, the planning rate, sampled-only results."""
 
 from __future__ import annotations
 
@@ -8,15 +8,42 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError
+from ..errors import ConfigError, GoalError
+from ..model.boundary import MoveProblem
+from ..parameters import option
 from ..results import SampledProfile
 from ..simulation.exact import PiecewiseConstant
+from ..time_optimal.rigid_body import rigid_time
 
 
-def required_option(config: PlannerConfig, name: str, method: str, allowed: str):
-    if name not in config.options:
+def required_option(config: PlannerConfig, name: str, method: str, allowed: str | None = None):
+    """``config.options[name]``, or :class:`ConfigError` saying ``method`` needs it (``allowed``: the registry's)."""
+    if config.options.get(name) is None:
+        allowed = allowed or option(name).allowed
         raise ConfigError(name, f"required by method {method}: set '{name}' ({allowed}) in the parameter file")
     return config.options[name]
+
+
+def check_move_budget(config: PlannerConfig, problem: MoveProblem) -> float:
+    """Refuse a move longer than ``config.max_move_duration_s`` before planning it; return its lower bound (s).
+
+    The bound is the rigid body's own minimum time (closed form, a lower bound
+    for the whole machine), so the check costs microseconds and refuses only
+    moves that certainly exceed the budget (e.g. ``--goal 1e300``).
+
+    Raises
+    ------
+    GoalError
+        Naming ``goal`` and the budget ``max_move_duration_s``.
+    """
+    T = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
+    if not T <= config.max_move_duration_s:
+        raise GoalError(
+            "goal",
+            f"the move needs at least {T:.4g} s (rigid-body minimum time), over the budget max_move_duration_s = "
+            f"{config.max_move_duration_s:g} s; move less far or raise max_move_duration_s",
+        )
+    return T
 
 
 def float_option(options: dict, name: str, unit: str, low: float, low_text: str) -> float | None:

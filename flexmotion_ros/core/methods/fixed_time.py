@@ -21,7 +21,7 @@ from .common import required_option
 def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
     move = prepare(problem)  # responses built once for every planner below
     problem = move.problem
-    raw = required_option(config, "arrival_time", "fixed_time", "s, >= the time-optimal move time T*")
+    raw = required_option(config, "arrival_time", "fixed_time")  # its unit and range: the registry's
     move = move.with_continuous(plan_time_optimal(move))  # T*, solved once for both planners
     continuous = plan_fixed_time(move, raw)
     sampled = plan_fixed_time_zoh(move, continuous.duration, rate_hz, continuous) if rate_hz else None

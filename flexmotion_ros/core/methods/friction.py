@@ -15,6 +15,7 @@ from ..config import PlannerConfig
 from ..friction.time_optimal import check_coulomb_force, plan_time_optimal_friction
 from ..friction.zoh import plan_time_optimal_friction_zoh
 from ..model.boundary import MoveProblem
+from ..parameters import option
 from ..results import PlanResult
 from ..simulation.prepared import PreparedMove, prepare
 from .common import required_option
@@ -24,7 +25,7 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
     move = prepare(problem)  # responses built once for every planner below
     problem = move.problem
     raw = required_option(
-        config, "coulomb_force", "time_optimal_friction", f"N, in [0, u_max) = [0, {problem.u_max:g})"
+        config, "coulomb_force", "time_optimal_friction", f"{option('coulomb_force').allowed} = [0, {problem.u_max:g})"
     )
     F = check_coulomb_force(raw, problem.u_max)
     continuous = plan_time_optimal_friction(problem, F)

@@ -22,12 +22,14 @@ from ..constraints.limits import Limits
 from ..constraints.planner import plan_limited_zoh
 from ..errors import ConfigError
 from ..model.boundary import MoveProblem
+from ..parameters import METHOD_OPTIONS
 from ..results import PlanResult
 from ..sampled.zoh import plan_time_optimal_zoh
 from ..simulation.prepared import PreparedMove, prepare
 from .common import SampledInput, planning_rate
 
-LIMIT_OPTIONS = ("limits.velocity_max", "limits.deflection_max", "limits.slew_rate", "limits.report_each")
+#: The limits (from the registry, :data:`~flexmotion_ros.core.parameters.METHOD_OPTIONS`).
+LIMIT_OPTIONS = tuple(p.name for p in METHOD_OPTIONS if "limited" in p.methods)
 
 
 # ------------------------------------------------------------------- limited

@@ -21,9 +21,11 @@ import numpy as np
 from ..config import METHOD_NAMES, PlannerConfig, check_rate_hz
 from ..errors import ConfigError, SolverError
 from ..model.boundary import MoveProblem
+from ..parameters import METHOD_OPTIONS, ParameterInfo
 from ..results import PlanResult
 from ..simulation.prepared import PreparedMove, prepare
 from . import fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
+from .common import check_move_budget
 
 Planner = Callable[[PlannerConfig, "MoveProblem | PreparedMove", "float | None"], PlanResult]
 
@@ -42,11 +44,15 @@ class Method:
         ``planner(config, move, rate_hz) -> PlanResult``: ``move`` a
         :class:`MoveProblem` or the :class:`PreparedMove` :func:`plan_move`
         builds once, ``rate_hz`` already validated (Hz) or None.
+    options : tuple of ParameterInfo
+        The options it reads (type, unit, range; ``required_by``), from the
+        registry :data:`~flexmotion_ros.core.parameters.METHOD_OPTIONS`.
     """
 
     name: str
     description: str
     planner: Planner
+    options: tuple[ParameterInfo, ...] = ()
 
 
 def _rows() -> dict[str, Method]:
@@ -54,7 +60,15 @@ def _rows() -> dict[str, Method]:
     rows += [Method(name=n, description=d, planner=p) for n, (d, p) in shaped.SHAPER_METHODS.items()]
     for module in (robust, friction, fixed_time, min_fuel, limited):
         rows.append(Method(name=module.METHOD_NAME, description=module.DESCRIPTION, planner=module.plan))
-    return {row.name: row for row in rows}
+    return {
+        row.name: Method(
+            name=row.name,
+            description=row.description,
+            planner=row.planner,
+            options=tuple(p for p in METHOD_OPTIONS if row.name in p.methods),
+        )
+        for row in rows
+    }
 
 
 #: Every planning method, by name (the default, ``time_optimal``, first).
@@ -75,7 +89,9 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     Raises
     ------
     InputError
-        Bad input (named parameter and allowed range).
+        Bad input (named parameter and allowed range); a goal whose
+        rigid-body minimum time exceeds ``config.max_move_duration_s``
+        (:func:`~.common.check_move_budget`).
     SolverError
         No profile passed its own checks (final state, bound).
     """
@@ -83,6 +99,7 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     if method is None:
         raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {config.method!r}")
     rate = check_rate_hz(rate_hz) if rate_hz else None
+    check_move_budget(config, problem.problem if isinstance(problem, PreparedMove) else problem)
     result = method.planner(config, prepare(problem), rate)
     if result.sampled is not None and result.sampled.commands.size:
         peak = float(np.max(np.abs(result.sampled.commands)))
