@@ -12,13 +12,22 @@ on ``~/goal`` (from rest, alternating ``+-goal``), and measures
 * the period between consecutive commands of a move: at the planner (send
   times inside the stream thread, from ``/diagnostics``) and here (receive
   times: adds DDS and this process's executor); median, p99, max;
-* lateness: the planner's worst send time after a sample's absolute deadline.
+* lateness: the planner's worst send time after a sample's absolute deadline;
+* stop latency: ``--stops`` moves are stopped through ``~/stop`` a random
+  0.1 .. 0.6 s in; from the planner's receipt of the request to its first
+  stop-plan sample sent (s, the planner's own clock, from ``/diagnostics``)
+  and in samples (the splice lead), median and p99, and how many were served
+  by a ready stop (planned in advance) rather than planned on demand;
+* shutdown to hold: SIGINT 0.5 s into a last move; from the signal to the
+  hold (0.0) received here, the exit status, and whether the last command
+  received was the hold.
 
 Each configuration runs with the stream thread under normal scheduling and
 under ``SCHED_FIFO`` (``stream_priority``), where the OS permits it.
 
     python bench/ros_streaming.py
     python bench/ros_streaming.py --rate 1000 --moves 5 --priorities 0 50
+    python bench/ros_streaming.py --moves 2 --stops 5 --priorities 0      # brief
 
 OpenBLAS threads are set to 1 before numpy loads (tiny matrices: threading only costs).
 """
@@ -51,6 +60,7 @@ def _args() -> argparse.Namespace:
     p.add_argument("--rate", type=float, default=1000.0, help="command rate (Hz)")
     p.add_argument("--goal", type=float, default=0.5, help="move distance (m); moves alternate +goal / back to 0")
     p.add_argument("--moves", type=int, default=5, help="moves per configuration")
+    p.add_argument("--stops", type=int, default=5, help="moves stopped through ~/stop per configuration")
     p.add_argument(
         "--priorities", type=int, nargs="+", default=[0, 50], help="stream_priority values to run (0: normal)"
     )
@@ -63,6 +73,7 @@ def run_config(args, priority: int) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64, Float64MultiArray
+    from std_srvs.srv import Trigger
 
     from flexmotion_ros.nodes import messages
     from flexmotion_ros.nodes.planner_node import COMMAND_QOS, DIAGNOSTIC_NAME
@@ -81,6 +92,8 @@ def run_config(args, priority: int) -> dict:
         f"rate_hz:={args.rate!r}",
         "-p",
         "publish_hold_when_idle:=false",
+        "-p",
+        "state.source:=assumed",
         *[a for x in args.extra for a in ("-p", x)],
         "-p",
         f"stream_priority:={priority}",
@@ -90,12 +103,14 @@ def run_config(args, priority: int) -> dict:
     node = rclpy.create_node("bench", namespace=ns)
     lock = threading.Lock()
     recv: list[float] = []
+    values: list[float] = []
     diags: list[dict] = []
 
     def on_cmd(msg) -> None:
         t = time.monotonic()
         with lock:
             recv.append(t)
+            values.append(float(msg.data[0]))
 
     def on_diag(msg) -> None:
         st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME, f"{ns}/flexmotion_planner")
@@ -106,6 +121,7 @@ def run_config(args, priority: int) -> dict:
     node.create_subscription(Float64MultiArray, "commands", on_cmd, COMMAND_QOS)
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 100)
     goal_pub = node.create_publisher(Float64, "flexmotion_planner/goal", 10)
+    stop_client = node.create_client(Trigger, "flexmotion_planner/stop")
     ex = SingleThreadedExecutor()
     ex.add_node(node)
     spin = threading.Thread(target=ex.spin, daemon=True)
@@ -119,6 +135,9 @@ def run_config(args, priority: int) -> dict:
             time.sleep(0.005)
 
     rows = []
+    stops = []
+    shutdown: dict = {}
+    rng = random.Random(1)
     try:
         wait(
             lambda: (
@@ -163,17 +182,74 @@ def run_config(args, priority: int) -> dict:
                     "received": int(times.size),
                 }
             )
+        wait(lambda: stop_client.service_is_ready(), 30.0, "~/stop")
+        for _ in range(args.stops):
+            target = args.goal if abs(target) < args.goal / 2 else 0.0
+            with lock:
+                n0, d0 = len(recv), len(diags)
+            goal_pub.publish(Float64(data=target))
+            wait(lambda n0=n0: len(recv) > n0, 30.0, "first command")
+            time.sleep(rng.uniform(0.1, 0.6))
+            with lock:
+                d1 = len(diags)
+            answer = stop_client.call_async(Trigger.Request())
+            wait(answer.done, 30.0, "~/stop answer")
+            wait(
+                lambda d1=d1: any(d["message"] == "idle" and "last_plan.stream_samples" in d for d in diags[d1:]),
+                60.0,
+                "end of the stop",
+            )
+            time.sleep(0.2)
+            with lock:
+                d = [x for x in diags[d1:] if x["message"] == "idle" and "last_plan.stream_samples" in x][-1]
+            stops.append(
+                {
+                    "latency_ms": float(d["last_plan.goal_to_first_command_s"]) * 1e3,
+                    "lead_samples": int(d.get("last_plan.stop_lead_samples", -1)),
+                    "ready": "ready stop" in answer.result().message or "last_plan.stop_lead_samples" in d,
+                }
+            )
+            target = float(d["position_at_rest"])
+        # shutdown to hold: SIGINT mid-move
+        for to in (args.goal if abs(target) < args.goal / 2 else 0.0, -args.goal):  # a refused goal moves nothing
+            with lock:
+                n0 = len(recv)
+            goal_pub.publish(Float64(data=to))
+            end = time.monotonic() + 5.0
+            while len(recv) <= n0 and time.monotonic() < end:
+                time.sleep(0.005)
+            if len(recv) > n0:
+                break
+        wait(lambda n0=n0: len(recv) > n0, 1.0, "first command")
+        time.sleep(0.5)
+        with lock:
+            n_sig = len(recv)
+        t_sig = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        status = proc.wait(timeout=10.0)
+        time.sleep(0.3)
+        with lock:
+            hold_at = [t for t, v in zip(recv[n_sig:], values[n_sig:], strict=True) if v == 0.0]
+            last = values[-1]
+        shutdown = {
+            "to_hold_ms": (hold_at[0] - t_sig) * 1e3 if hold_at else float("nan"),
+            "status": status,
+            "last": last,
+        }
     finally:
         ex.shutdown(timeout_sec=1.0)
         node.destroy_node()
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                proc.kill()
         log.close()
-    refused = "refused" in Path(log.name).read_text()
-    return {"priority": priority, "refused": refused, "rows": rows}
+    refused = "SCHED_FIFO" in Path(log.name).read_text() and "refused" in Path(log.name).read_text()
+    text = Path(log.name).read_text()
+    shutdown["traceback"] = "Traceback" in text
+    return {"priority": priority, "refused": refused, "rows": rows, "stops": stops, "shutdown": shutdown}
 
 
 def main() -> None:
@@ -225,6 +301,25 @@ def main() -> None:
     print("recv: periods between arrivals here (all moves pooled; includes DDS and this process). late max: the")
     print("worst delay of a send after its absolute deadline t0 + k/rate (deadlines never drift: late samples go")
     print("out at once, none is skipped). lost: commands planned + hold minus commands received.")
+    print()
+    hdr = f"{'stream thread':<22}{'stop latency ms (med/p99)':>27}{'samples (med/p99)':>20}{'ready':>8}{'SIGINT->hold ms':>17}{'exit':>6}{'last cmd':>10}{'traceback':>11}"
+    print(hdr)
+    print("-" * len(hdr))
+    for res in results:
+        st, sd = res["stops"], res["shutdown"]
+        name = "normal" if res["priority"] == 0 else f"SCHED_FIFO {res['priority']}"
+        lat = np.array([r["latency_ms"] for r in st]) if st else np.array([np.nan])
+        lead = np.array([r["lead_samples"] for r in st], float) if st else np.array([np.nan])
+        print(
+            f"{name:<22}{np.median(lat):>15.1f} /{np.percentile(lat, 99):>8.1f}"
+            f"{np.median(lead):>12.0f} /{np.percentile(lead, 99):>5.0f}{sum(r['ready'] for r in st):>5d}/{len(st):<2d}"
+            f"{sd.get('to_hold_ms', float('nan')):>17.1f}{sd.get('status', -1):>6}{sd.get('last', float('nan')):>10.3g}"
+            f"{'yes' if sd.get('traceback') else 'no':>11}"
+        )
+    print()
+    print("stop latency: the planner's receipt of ~/stop -> its first stop-plan sample sent (the planner's clock);")
+    print("samples: the splice lead (-1: planned on demand, not a ready stop). SIGINT->hold: the signal sent here ->")
+    print("the hold (0.0) received here; exit: the planner's status; last cmd: the last command received.")
 
 
 if __name__ == "__main__":

@@ -7,20 +7,27 @@ and logging):
 * :mod:`.timeline` -- :class:`Segment` (a planned command sequence at a
   global sample index) and the state a timeline predicts at a sample;
 * :mod:`.splice` -- where a goal during a move is spliced in (the splice
-  sample, the predicted state there) and the look-ahead policy;
+  sample, the predicted state there), the look-ahead policy, and the
+  :class:`StopPreparer` that keeps verified stops ready for the current move;
 * :mod:`.command_stream` -- :class:`CommandStream`, the absolute-deadline
-  loop with the clock, the sleep and the publisher injected;
+  loop with the clock, the sleep and the publisher injected; every halt
+  (stop, fault) sends the hold and says why (:class:`StreamHalt`);
+* :mod:`.measured_state` -- the machine's measured state: settings, the
+  state vector from joint names, staleness;
 * :mod:`.summary` -- the plan's figures the planner reports.
 """
 
-from .command_stream import CommandStream, StreamStep
+from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
+from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
 from .splice import (
     DEFAULT_PLAN_TIME_S,
     PLAN_TIME_FACTOR,
     PLAN_TIME_MARGIN_S,
     PLAN_TIME_WINDOW,
     SPLICE_ATTEMPTS,
+    ReadyStop,
     SplicePoint,
+    StopPreparer,
     ended_at_rest,
     lead_samples,
     longer_lead,
@@ -37,6 +44,13 @@ __all__ = [
     "PLAN_TIME_WINDOW",
     "SPLICE_ATTEMPTS",
     "CommandStream",
+    "HaltCause",
+    "MeasuredState",
+    "ReadyStop",
+    "StateSettings",
+    "StateSource",
+    "StopPreparer",
+    "StreamHalt",
     "Segment",
     "SplicePoint",
     "StreamStep",
@@ -46,4 +60,6 @@ __all__ = [
     "plan_summary",
     "predicted_state",
     "splice_point",
+    "state_settings",
+    "state_vector",
 ]

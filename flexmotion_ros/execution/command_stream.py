@@ -15,6 +15,12 @@ equilibria, no force is needed at rest); while idle it either keeps sending
 the hold at the rate (``hold_when_idle``) or sends nothing and sleeps until
 the next move, which then starts on the next sample.
 
+Whatever ends the stream -- :meth:`CommandStream.stop` (shutdown,
+deactivation) or a fault in the stream thread (the publisher or a callback
+raised) -- the last command sent is the hold: a move in progress is cut off
+and one hold sample follows at once (:class:`StreamHalt` says what happened).
+A stopped stream can be started again (:meth:`CommandStream.start`).
+
 The clock, the sleep and the "publish one sample" callable are injected:
 :meth:`CommandStream.start` runs :meth:`CommandStream.step` in a dedicated
 thread; a test calls :meth:`~CommandStream.step` itself with a fake clock.
@@ -28,6 +34,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
@@ -56,6 +63,61 @@ class StreamStep:
     value: float | None
 
 
+class HaltCause(Enum):
+    """Why the stream ended (the values are the strings the log shows)."""
+
+    STOPPED = "stopped"  # stop() was called: shutdown, deactivation
+    FAULT = "fault"  # the publisher or a callback raised in the stream thread
+
+
+@dataclass(frozen=True, kw_only=True)
+class StreamHalt:
+    """How the stream ended: the hold that closed it.
+
+    Attributes
+    ----------
+    cause : HaltCause
+        ``stopped`` (:meth:`CommandStream.stop`) or ``fault``.
+    why : str
+        The caller's reason (``"shutdown"``, ``"deactivated"``) or the fault (exception and message).
+    held : bool
+        The last command sent is the hold (:data:`~.timeline.HOLD`); False only if
+        publishing the hold failed too (see ``hold_error``).
+    hold_sent : bool
+        A hold sample was sent to end it (False: the last command sent was already the hold, or none was sent).
+    interrupted : bool
+        A move was in progress: its remaining commands were dropped.
+    sample : int
+        Global index (samples) of the next sample not sent.
+    last_value : float or None
+        The last command sent before the halt (N); None if none was ever sent.
+    hold_error : str
+        Why publishing the hold failed ("" if it did not).
+    """
+
+    cause: HaltCause
+    why: str
+    held: bool
+    hold_sent: bool
+    interrupted: bool
+    sample: int
+    last_value: float | None
+    hold_error: str = ""
+
+    def describe(self) -> str:
+        """One line for the log: what ended the stream and what the actuator got last."""
+        if self.hold_sent:
+            what = f"hold ({HOLD:g}) sent at sample {self.sample - 1}"
+        elif self.held:
+            what = f"the last command sent was already the hold ({HOLD:g})"
+        elif self.last_value is None:
+            what = "no command was ever sent"
+        else:
+            what = f"the hold could NOT be sent ({self.hold_error}); the last command sent was {self.last_value:.9g}"
+        cut = "; the move in progress was cut off" if self.interrupted else ""
+        return f"command stream {self.cause.value} ({self.why}): {what}{cut}"
+
+
 class CommandStream:
     """Publish one command per period, at absolute deadlines.
 
@@ -70,6 +132,9 @@ class CommandStream:
     on_start, on_finish : callable, optional
         ``f(segment)`` when a segment sends its first command / when the
         timeline runs out (after the explicit hold).  Called from the stream thread.
+    on_fault : callable, optional
+        ``f(halt)`` after a fault in the stream thread ended the stream (the
+        hold already sent, :class:`StreamHalt`).  Called from the stream thread.
     clock : callable
         Monotonic clock (s).
     record : int
@@ -94,12 +159,14 @@ class CommandStream:
         record: int = 200_000,
         priority: int = 0,
         sleep: Callable[[float], None] = time.sleep,
+        on_fault: Callable[[StreamHalt], None] | None = None,
     ) -> None:
         self.dt = 1.0 / float(rate_hz)
         self._publish = publish
         self._hold_when_idle = bool(hold_when_idle)
         self._on_start = on_start
         self._on_finish = on_finish
+        self._on_fault = on_fault
         self._clock = clock
         self._sleep = sleep
         self._cond = threading.Condition()
@@ -108,6 +175,7 @@ class CommandStream:
         self._t_anchor = clock()  # start() re-anchors: sample 0 is due when the stream starts
         self._k_anchor = 0
         self._stop = False
+        self._stop_why = "stopped"
         self._thread: threading.Thread | None = None
         self.sent_times: deque[float] = deque(maxlen=record)  # send times (s), all samples
         self.lateness: deque[float] = deque(maxlen=record)  # send time - deadline (s)
@@ -115,24 +183,105 @@ class CommandStream:
         self.priority = int(priority)
         self.priority_error: str | None = None
         self._started = threading.Event()
+        #: The last command published (N); None before the first.
+        self.last_value: float | None = None
+        #: How the stream last ended (None while it has not).
+        self.halted: StreamHalt | None = None
+        self._halt_lock = threading.Lock()  # one hold per halt, from whichever thread gets there first
 
     # ------------------------------------------------------------------ control
     def start(self) -> None:
-        """Start the stream thread (sample 0 is due now)."""
+        """Start the stream thread: the next sample (sample 0 at first) is due now.
+
+        After :meth:`stop` (or a fault) this starts it again, idle, with the
+        global sample index continuing.
+        """
+        if self._thread is not None and self._thread.is_alive():
+            raise RuntimeError("the command stream is already running")
         with self._cond:
+            self._stop = False
+            self._queue = []
             self._t_anchor = self._clock()
-            self._k_anchor = 0
+            self._k_anchor = self._k_next
+            self.halted = None
+        self._started.clear()
         self._thread = threading.Thread(target=self._run, name="flexmotion-stream", daemon=True)
         self._thread.start()
         self._started.wait(2.0)  # priority_error is known when start() returns
 
-    def stop(self, timeout: float = 2.0) -> None:
-        """Stop the thread (returns within ``timeout`` s)."""
+    @property
+    def running(self) -> bool:
+        """The stream thread is alive and not stopping."""
+        return self._thread is not None and self._thread.is_alive() and not self._stop
+
+    def stop(self, why: str = "stopped", timeout: float = 2.0) -> StreamHalt:
+        """End the stream with the hold: drop what is queued, send one hold sample, stop the thread.
+
+        The stream thread sends the hold at once (at most one period after
+        this call, when its sleep ends); if the thread is not running (never
+        started, already ended) or does not end within ``timeout`` s, the
+        hold is sent from the calling thread.  Idempotent: a second call
+        returns the first halt.
+
+        Parameters
+        ----------
+        why : str
+            The reason, for the log (``"shutdown"``, ``"deactivated"``).
+        timeout : float
+            How long to wait for the thread (s).
+
+        Returns
+        -------
+        StreamHalt
+            What was cut off and whether the hold went out.
+        """
         with self._cond:
             self._stop = True
+            self._stop_why = why
             self._cond.notify_all()
-        if self._thread is not None:
-            self._thread.join(timeout)
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+        return self._halt(HaltCause.STOPPED, why)
+
+    def _halt(self, cause: HaltCause, why: str) -> StreamHalt:
+        """Drop the timeline and send the hold unless it was the last command sent (once per halt)."""
+        # the stream thread publishes under this lock: nothing it sends can follow the hold
+        acquired = self._halt_lock.acquire(timeout=1.0)  # a publish stuck for 1 s: send the hold anyway
+        try:
+            if self.halted is not None:
+                return self.halted
+            with self._cond:
+                self._stop = True
+                interrupted = bool(self._queue)
+                self._queue = []
+                last = self.last_value
+                k = self._k_next
+            hold_sent, error = False, ""
+            if last is not None and last != HOLD:
+                try:
+                    self._publish(HOLD)
+                    hold_sent = True
+                    self.last_value = HOLD
+                    with self._cond:
+                        self._k_next = k = k + 1
+                    self.samples_sent += 1
+                except Exception as exc:  # noqa: BLE001 -- reported in the halt, never raised
+                    error = f"{type(exc).__name__}: {exc}"
+            self.halted = StreamHalt(
+                cause=cause,
+                why=why,
+                held=last is None or last == HOLD or hold_sent,
+                hold_sent=hold_sent,
+                interrupted=interrupted,
+                sample=k,
+                last_value=last,
+                hold_error=error,
+            )
+            return self.halted
+        finally:
+            if acquired:
+                self._halt_lock.release()
 
     @property
     def hold_when_idle(self) -> bool:
@@ -164,9 +313,23 @@ class CommandStream:
             _, segments = self.snapshot()
         return predicted_state(segments, k)
 
+    def _check_not_halted(self) -> None:
+        if self._stop:
+            halt = self.halted
+            raise RuntimeError(
+                "the command stream is stopped" + (f" ({halt.cause.value}: {halt.why})" if halt is not None else "")
+            )
+
     def start_now(self, segment: Segment) -> int:
-        """Start ``segment`` on the next sample of an idle stream; returns its start index (samples)."""
+        """Start ``segment`` on the next sample of an idle stream; returns its start index (samples).
+
+        Raises
+        ------
+        RuntimeError
+            The stream is not idle, or it is stopped (:meth:`stop`, a fault).
+        """
         with self._cond:
+            self._check_not_halted()
             if self._queue:
                 raise RuntimeError("stream is not idle; splice instead")
             self._rebase_if_sleeping()
@@ -183,6 +346,7 @@ class CommandStream:
         meanwhile (then :meth:`start_now` applies).
         """
         with self._cond:
+            self._check_not_halted()
             if not self._queue or at < self._k_next:
                 return False
             self._queue = [s for s in self._queue if s.start < at]
@@ -236,7 +400,11 @@ class CommandStream:
             self._k_next = k + 1
         now = self._clock()
         if value is not None:
-            self._publish(value)
+            with self._halt_lock:
+                if self.halted is not None:  # stop() gave up waiting and sent the hold: nothing after it
+                    return None
+                self._publish(value)
+                self.last_value = value
             self.sent_times.append(now)
             self.lateness.append(now - deadline)
             self.samples_sent += 1
@@ -291,13 +459,23 @@ class CommandStream:
     def _run(self) -> None:
         self._set_priority()
         self._started.set()
-        while True:
-            with self._cond:
-                while not self._stop and self._sleeping():
-                    self._cond.wait()  # start_now / the setter re-anchor the deadlines
-                if self._stop:
-                    return
-            self.step()
+        try:
+            while True:
+                with self._cond:
+                    while not self._stop and self._sleeping():
+                        self._cond.wait()  # start_now / the setter re-anchor the deadlines
+                    if self._stop:
+                        break
+                self.step()
+        except Exception as exc:  # noqa: BLE001 -- a fault ends the stream with the hold, never a traceback
+            halt = self._halt(HaltCause.FAULT, f"{type(exc).__name__}: {exc}")
+            if self._on_fault is not None:
+                try:
+                    self._on_fault(halt)
+                except Exception:  # noqa: BLE001, S110 -- e.g. the logger is gone at shutdown
+                    pass
+            return
+        self._halt(HaltCause.STOPPED, self._stop_why)
 
 
-__all__ = ["CommandStream", "StreamStep"]
+__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep"]

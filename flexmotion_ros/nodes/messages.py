@@ -13,6 +13,8 @@ Only standard types (no custom interfaces):
   position ``pose.position.x`` per (decimated) sample.  ``GetPlan`` has no
   error field: a refused request answers an empty path whose
   ``header.frame_id`` is ``"error: <reason>"``;
+* ``~/joint_trajectory`` goals: :func:`trajectory_goal` (the last point of
+  the planner's joint; its ``time_from_start`` is the requested arrival);
 * ``joint_states``: ``sensor_msgs/JointState`` (``rigid_body``, ``mode_1``,
   ...: position, velocity; effort = the applied command on every joint);
 * ``/diagnostics``: ``diagnostic_msgs/DiagnosticArray``.
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
@@ -32,9 +35,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ..core.errors import GoalError
+from ..execution.measured_state import RIGID_BODY, closest
+
 #: Prefix of ``Path.header.frame_id`` when a GetPlan request is refused.
 ERROR_PREFIX = "error: "
-RIGID_BODY = "rigid_body"
 
 
 def command(value: float) -> Float64MultiArray:
@@ -130,20 +135,72 @@ def path_error(msg: Path) -> str | None:
     return fid[len(ERROR_PREFIX) :] if fid.startswith(ERROR_PREFIX) else None
 
 
-def target_from_trajectory(msg: JointTrajectory) -> float | None:
-    """A joint trajectory controller's goal: the last point's first position; None: stop (empty).
+@dataclass(frozen=True, kw_only=True)
+class TrajectoryGoal:
+    """What a ``~/joint_trajectory`` message asks for.
+
+    Attributes
+    ----------
+    target : float or None
+        The last point's position of the planner's joint (m or rad); None: stop (no points).
+    arrival_time : float or None
+        The last point's ``time_from_start`` (s) as the requested arrival,
+        counted from the move's first command; None: as fast as possible (0).
+    """
+
+    target: float | None
+    arrival_time: float | None = None
+
+
+def trajectory_goal(msg: JointTrajectory, joint_name: str = RIGID_BODY) -> TrajectoryGoal:
+    """A joint trajectory controller's goal for the joint ``joint_name``: its last point, at rest.
+
+    Only the last point counts (the planner plans its own path there); its
+    ``time_from_start`` is the requested arrival (0: as fast as possible).
+    An empty message (no points) stops.
 
     Raises
     ------
-    ValueError
-        A last point without positions.
+    GoalError
+        ``joint_names`` empty, repeating a name or naming a joint this planner
+        does not move (with the closest valid name); the last point without a
+        finite position for each joint, with a non-zero final velocity, or a
+        negative ``time_from_start``.
     """
     if not msg.points:
-        return None
+        return TrajectoryGoal(target=None)
+    names = [str(n) for n in msg.joint_names]
+    if not names:
+        raise GoalError("joint_trajectory.joint_names", f"is empty; this planner moves the joint {joint_name!r}")
+    for n in names:
+        if n != joint_name:
+            raise GoalError(
+                "joint_trajectory.joint_names",
+                f"unknown joint {n!r}: this planner moves only {joint_name!r} (parameter joint_name)"
+                + closest(n, [joint_name]),
+            )
+    if len(names) != 1:
+        raise GoalError("joint_trajectory.joint_names", f"names {joint_name!r} {len(names)} times; give it once")
     last = msg.points[-1]
-    if not len(last.positions):
-        raise ValueError("joint_trajectory: the last point has no positions")
-    return float(last.positions[0])
+    if len(last.positions) != 1:
+        raise GoalError(
+            "joint_trajectory.points[-1].positions",
+            f"needs one position per joint name (1), got {len(last.positions)}",
+        )
+    target = float(last.positions[0])
+    if not math.isfinite(target):
+        raise GoalError("joint_trajectory.points[-1].positions", f"must be finite, got {target}")
+    if len(last.velocities) and float(last.velocities[0]) != 0.0:
+        raise GoalError(
+            "joint_trajectory.points[-1].velocities",
+            f"must be 0 (or empty): the planner arrives at rest, got {float(last.velocities[0])}",
+        )
+    t = from_time(last.time_from_start)
+    if t < 0.0:
+        raise GoalError(
+            "joint_trajectory.points[-1].time_from_start", f"must be >= 0 s (0: as fast as possible), got {t}"
+        )
+    return TrajectoryGoal(target=target, arrival_time=t if t > 0.0 else None)
 
 
 def joint_state(names: list[str], x: np.ndarray, u: float, stamp: Time) -> JointState:

@@ -1,6 +1,7 @@
 """The planner's status on ``/diagnostics``: :class:`StatusReporter`.
 
-Holds what the planner reports -- ``idle`` / ``moving`` / ``error: <reason>``,
+Holds what the planner reports -- ``idle`` / ``moving`` / ``error: <reason>``
+(``inactive`` / ``unconfigured`` / ``finalized`` while not active, lifecycle),
 the request being planned, the target, the last plan's figures and its stream
 timing -- behind one lock, builds the ``(level, message, values)`` of the
 status, and publishes it on ``/diagnostics`` on request and periodically from
@@ -52,6 +53,7 @@ class StatusReporter:
         self._context = context
         self._lock = threading.Lock()
         self._state = "idle"
+        self._lifecycle = "unconfigured"
         self._planning = ""  # the request being planned ("" if none)
         self._last_error: str | None = None
         self._last: dict[str, Any] = {}
@@ -86,6 +88,16 @@ class StatusReporter:
         """Mark the request being planned (``""``: none)."""
         with self._lock:
             self._planning = source
+
+    def set_lifecycle(self, label: str) -> None:
+        """The node's lifecycle state (``unconfigured``, ``inactive``, ``active``, ``finalized``).
+
+        Not active: the message is the label; activating resets the motion state to ``idle``.
+        """
+        with self._lock:
+            if label == "active" or self._lifecycle != label:
+                self._state = "idle"
+            self._lifecycle = label
 
     def set_error(self, reason: str | None) -> None:
         """Set (or, with None, clear) the error the status reports."""
@@ -139,21 +151,23 @@ class StatusReporter:
     def status(self) -> tuple[int, str, dict[str, Any]]:
         """``(level, message, values)`` of the status on /diagnostics."""
         with self._lock:
-            state, err, last, target, planning = (
+            state, err, last, target, planning, lifecycle = (
                 self._state,
                 self._last_error,
                 dict(self._last),
                 self._target,
                 self._planning,
+                self._lifecycle,
             )
         level = DiagnosticStatus.ERROR if err else DiagnosticStatus.OK
         level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
-        message = f"error: {err}" if err else state
+        message = f"error: {err}" if err else (state if lifecycle == "active" else lifecycle)
         values: dict[str, Any] = {
             "state": state,
             "planning": planning,  # the request being planned right now ("" if none)
             "last_error": err or "",
             "target": target if target is not None else float("nan"),
+            "lifecycle": lifecycle,
         }
         values.update(self._context())
         values.update({f"last_plan.{k}": v for k, v in last.items()})

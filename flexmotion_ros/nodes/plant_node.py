@@ -13,6 +13,9 @@ ODE solver):
 
 * ``lockstep: true`` -- each command received advances exactly one sample
   period ``1/rate_hz``, then the state is published: deterministic, for tests;
+  while no command arrives it publishes the unchanged state every
+  ``plant.idle_state_period_s`` as a best-effort heartbeat (a reliable
+  subscriber never sees it; the planner's measured-state subscription does);
 * ``lockstep: false`` -- real time on the system clock: each command applies
   from the instant DDS received it (``MessageInfo.received_timestamp``, on a
   1 us grid; ``plant.apply_at: send`` uses the publisher's send time instead:
@@ -43,6 +46,7 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -66,6 +70,9 @@ NODE_NAME = "flexmotion_plant"
 DIAGNOSTIC_NAME = "flexmotion_plant: simulation"
 #: Deep (10 s at 1 kHz) and reliable both ways, so that lockstep tests and the demo see every sample.
 PLANT_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: The lockstep plant's idle heartbeat on joint_states: best effort, so a reliable subscriber (a recorder
+#: counting one state per command) never sees it, while a best-effort one (the planner's measured state) does.
+IDLE_STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
 #: Real-time event times are kept on this grid (s), so step matrices can be cached.
 TIME_QUANTUM = 1e-6
 _CACHE_LIMIT = 20000
@@ -110,6 +117,7 @@ class PlantNode(Node):
         self.received = 0  # commands handed over by the executor
         self.applied = 0  # commands integrated
         self.timeouts = 0
+        self.published = 0  # joint_states messages published (a subscriber counts its losses against it)
         self.max_lag = 0.0  # s, arrival -> integration (real time)
         self._events: deque[tuple[int, float]] = deque()
         self._origin_ns = time.time_ns()
@@ -126,6 +134,17 @@ class PlantNode(Node):
         if not cfg.lockstep:
             rate = float(self._values()["publish_rate_hz"]) or cfg.rate_hz
             self.create_timer(1.0 / rate, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
+        idle_period = float(self._values()["plant.idle_state_period_s"])
+        if cfg.lockstep and idle_period > 0.0:
+            # a best-effort heartbeat while idle, on the steady clock (a paused lockstep machine is still there)
+            self._idle_pub = self.create_publisher(JointState, "joint_states", IDLE_STATE_QOS)
+            self._idle_seen = -1
+            self.create_timer(
+                idle_period,
+                self._on_idle_timer,
+                callback_group=MutuallyExclusiveCallbackGroup(),
+                clock=Clock(clock_type=ClockType.STEADY_TIME),
+            )
         self.create_timer(0.5, self.publish_diagnostics, callback_group=MutuallyExclusiveCallbackGroup())
         gc.collect()  # as the planner: keep full collections off the real-time path
         gc.freeze()
@@ -250,7 +269,18 @@ class PlantNode(Node):
             self.x = self._state_at(now)
             self._publish(self.u if now <= self._cutoff() else 0.0)
 
+    def _on_idle_timer(self) -> None:
+        """Lockstep: no command for a whole period, publish the (unchanged) state as a best-effort heartbeat."""
+        with self._lock:
+            idle = self.received == self._idle_seen
+            self._idle_seen = self.received
+            if idle:
+                msg = messages.joint_state(self.joint_names, self.x, self.u, self.get_clock().now().to_msg())
+        if idle:
+            self._idle_pub.publish(msg)
+
     def _publish(self, u: float) -> None:
+        self.published += 1
         self._pub.publish(messages.joint_state(self.joint_names, self.x, u, self.get_clock().now().to_msg()))
 
     def state(self) -> np.ndarray:
@@ -280,6 +310,10 @@ class PlantNode(Node):
                 "timeouts": self.timeouts,
                 "model_error": self._model_error,
                 "position": float(self.x[0]),
+                # writer-side matches: a subscriber knows it will get every sample published from now on
+                "joint_states_subscribers": self._pub.get_subscription_count(),
+                "joint_states_published": self.published,
+                "diagnostics_subscribers": self._diag_pub.get_subscription_count(),
             }
         ok = DiagnosticStatus.OK
         level = ok[0] if isinstance(ok, (bytes, bytearray)) else int(ok)

@@ -14,6 +14,8 @@ from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.execution import HOLD, CommandStream, Segment, lead_samples, splice_point
+from flexmotion_ros.execution.command_stream import HaltCause
+from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, StopPreparer, ready_stop_usable
 
 RATE = 100.0
 DT = 1.0 / RATE
@@ -232,7 +234,8 @@ def test_the_thread_plays_a_move_then_waits_for_the_next():
         assert values == [1.0, 2.0, 3.0, HOLD, 4.0, HOLD]
     finally:
         stream.stop()
-    stream.start_now(segment([5.0]))  # stopped: nothing more goes out
+    with pytest.raises(RuntimeError, match="stopped"):  # stopped: nothing more goes out
+        stream.start_now(segment([5.0]))
     threading.Event().wait(0.05)
     assert values == [1.0, 2.0, 3.0, HOLD, 4.0, HOLD]
 
@@ -246,3 +249,139 @@ def test_recent_timing_is_the_last_samples_sent():
     np.testing.assert_allclose(times, T0 + np.array([3.0, 4.0, 5.0]) * DT + [0.0, 0.5 * DT, 0.0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(late, [0.0, 0.5 * DT, 0.0], rtol=0, atol=1e-9)
     assert [a.size for a in stream.recent_timing(1)] == [0, 0]  # one sample has no period
+
+
+# ------------------------------------------------------------------ the hold on stop and on a fault
+
+
+def test_stop_mid_move_sends_the_hold_at_once_and_nothing_after():
+    # the old stop() only joined the thread: the actuator kept the last force (issue 11)
+    stream, clock, rec = make_stream()
+    stream.start_now(segment([1.0, 0.9, 0.8, 0.7, 0.6]))
+    stream.step()
+    stream.step()
+    halt = stream.stop("shutdown")
+    assert rec.values == [1.0, 0.9, HOLD]
+    assert halt.cause is HaltCause.STOPPED and halt.why == "shutdown"
+    assert halt.held and halt.hold_sent and halt.interrupted and halt.last_value == 0.9 and halt.sample == 3
+    assert "hold (0) sent" in halt.describe() and "cut off" in halt.describe()
+    assert stream.stop("again") is halt  # idempotent: one hold
+    assert stream.step() is None and rec.values == [1.0, 0.9, HOLD]
+    assert stream.idle
+
+
+def test_stop_after_the_move_ended_sends_no_second_hold():
+    stream, clock, rec = make_stream()
+    stream.start_now(segment([0.5, -0.5]))
+    run_until_idle(stream)
+    halt = stream.stop("deactivated")
+    assert rec.values == [0.5, -0.5, HOLD]
+    assert halt.held and not halt.hold_sent and not halt.interrupted
+    assert "already the hold" in halt.describe()
+
+
+def test_the_thread_stopped_mid_move_ends_with_one_hold():
+    values: list[float] = []
+    stream = CommandStream(1000.0, values.append, False)  # the real clock
+    stream.start()
+    stream.start_now(segment([1.0] * 5000))
+    deadline = threading.Event()
+    while len(values) < 20:
+        assert not deadline.wait(0.002)
+    halt = stream.stop("shutdown")
+    assert not stream.running
+    n = len(values)
+    assert values[-1] == HOLD and values[:-1] == [1.0] * (n - 1)
+    assert halt.hold_sent and halt.interrupted
+    threading.Event().wait(0.02)
+    assert len(values) == n  # nothing after the hold
+
+
+def test_a_fault_in_the_stream_thread_ends_with_the_hold_and_the_stream_restarts():
+    clock = FakeClock()
+    values: list[float] = []
+    faults = []
+    fail = {"at": 3}
+
+    def publish(value: float) -> None:
+        if len(values) == fail["at"]:
+            fail["at"] = -1
+            raise OSError("publisher's context is invalid")
+        values.append(value)
+
+    stream = CommandStream(RATE, publish, False, clock=clock, sleep=clock.sleep, on_fault=faults.append)
+    stream.start()
+    stream.start_now(segment([1.0] * 10))
+    stream._thread.join(5.0)  # noqa: SLF001 -- the test waits for the stream thread to end
+    assert values == [1.0, 1.0, 1.0, HOLD]
+    assert len(faults) == 1 and faults[0] is stream.halted
+    halt = faults[0]
+    assert halt.cause is HaltCause.FAULT and "OSError" in halt.why and halt.hold_sent and halt.interrupted
+    with pytest.raises(RuntimeError, match="fault"):
+        stream.start_now(segment([2.0]))
+    assert stream.stop("shutdown") is halt  # no second hold
+    stream.start()  # a stopped stream starts again, idle, the sample index continuing
+    try:
+        done = threading.Event()
+        stream._on_finish = lambda seg: done.set()  # noqa: SLF001
+        seg = segment([2.0])
+        stream.start_now(seg)
+        assert done.wait(5.0)
+        assert values[-2:] == [2.0, HOLD] and seg.start >= 4
+    finally:
+        stream.stop()
+
+
+def test_a_failing_hold_is_reported_not_raised():
+    clock = FakeClock()
+    values: list[float] = []
+
+    def publish(value: float) -> None:
+        if value == HOLD:
+            raise RuntimeError("context is invalid")
+        values.append(value)
+
+    stream = CommandStream(RATE, publish, False, clock=clock, sleep=clock.sleep)
+    stream.start_now(segment([1.0, 1.0]))
+    stream.step()
+    halt = stream.stop("shutdown")
+    assert not halt.held and not halt.hold_sent and "context is invalid" in halt.hold_error
+    assert "could NOT be sent" in halt.describe()
+
+
+# ------------------------------------------------------------------ ready stops (the stream's preparer)
+
+
+def test_ready_stops_are_planned_ahead_and_used_only_while_the_timeline_still_predicts_them():
+    states = np.cumsum(np.ones((1001, 4)), axis=0)  # a distinct predicted state at every sample
+    move = Segment(np.ones(1000), states, start=0)
+    k_now = {"k": 10}
+    timeline = [move]
+    key = {"config": object()}
+    planned: list[np.ndarray] = []
+
+    def plan(x0: np.ndarray, k) -> Segment:
+        assert k is key["config"]
+        planned.append(x0)
+        return segment([-1.0, -1.0])
+
+    prep = StopPreparer(plan, lambda: (k_now["k"], list(timeline)), lambda: key["config"], lambda tl: True, 1000.0)
+    prep.start()
+    try:
+        prep.notify(0.01)  # the move took 10 ms to plan: the first guess of a stop's
+        deadline = threading.Event()
+        while len(prep.ready()) < 2:
+            assert not deadline.wait(0.01)
+        ready = prep.ready()
+        assert all(r.sample >= 10 + STOP_MARGIN_SAMPLES for r in ready)
+        assert all(np.array_equal(r.state, move.state_at(r.sample)) for r in ready)  # from the predicted state
+        first = ready[0]
+        assert ready_stop_usable(first, timeline, k_now["k"], key["config"])
+        assert not ready_stop_usable(first, timeline, first.sample - 1, key["config"])  # too close: not seen in time
+        assert not ready_stop_usable(first, timeline, k_now["k"], object())  # another configuration
+        other = Segment(np.ones(1000), states + 1.0, start=5)  # a splice changed what is predicted there
+        assert not ready_stop_usable(first, [move, other], k_now["k"], key["config"])
+        got = prep.take()
+        assert got is first and first not in prep.ready()
+    finally:
+        prep.stop()

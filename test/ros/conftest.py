@@ -1,9 +1,11 @@
 """ROS test harness: real rclpy nodes over real DDS, isolated per pytest run.
 
-Isolation: each pytest run picks its own ``ROS_DOMAIN_ID`` (random in
-1..100, seeded by the pid) and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``,
-set here at import, before any ``rclpy.init``; every node also lives in a
-namespace unique to the run.  So two runs on one machine never talk.
+Isolation: a ``ROS_DOMAIN_ID`` already set is respected; otherwise each
+pytest run takes a free one in 1..100 (a lock file per id under the temp
+directory, held for the run, so two concurrent runs never share one).  With
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, set here at import, before any
+``rclpy.init``, and every node in a namespace unique to the run, two runs on
+one machine never talk.
 
 rclpy is imported at module level on purpose: where it is missing, the ROS
 tests fail at collection instead of being skipped.
@@ -11,12 +13,15 @@ tests fail at collection instead of being skipped.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import random
+import tempfile
 import threading
 import time
 import traceback
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 # small matrices: a multi-threaded BLAS is 100x slower on a loaded machine (see flexmotion_ros.nodes)
@@ -32,7 +37,44 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 _RNG = random.Random(os.getpid() ^ time.time_ns())
-os.environ["ROS_DOMAIN_ID"] = str(_RNG.randint(1, 100))
+#: Lock files of the domain ids that test runs hold (one open, locked file per id; released at exit).
+DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / "flexmotion_ros_test_domains"
+_DOMAIN_LOCKS: list = []
+
+
+def _choose_domain_id() -> str:
+    """The user's ``ROS_DOMAIN_ID`` if set; else a free id in 1..100, held for this process by a lock file.
+
+    The lock (``flock`` on ``DOMAIN_LOCK_DIR/<id>.lock``) is released when the
+    process exits, however it exits: two concurrent test runs never share an id.
+    A set id is locked too where it is free (runs that pick one then avoid it).
+    """
+    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    given = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if given:
+        _lock_domain(given)
+        return given
+    ids = [str(i) for i in range(1, 101)]
+    _RNG.shuffle(ids)
+    for i in ids:
+        if _lock_domain(i):
+            return i
+    raise RuntimeError(f"no free ROS_DOMAIN_ID in 1..100: every lock in {DOMAIN_LOCK_DIR} is held")
+
+
+def _lock_domain(domain_id: str) -> bool:
+    """Take the lock of ``domain_id`` for this process; False where another process holds it."""
+    f = open(DOMAIN_LOCK_DIR / f"{domain_id}.lock", "a")  # noqa: SIM115 -- held open: the lock lives with it
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        return False
+    _DOMAIN_LOCKS.append(f)
+    return True
+
+
+os.environ["ROS_DOMAIN_ID"] = _choose_domain_id()
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 NAMESPACE = f"/flexmotion_test_{os.getpid()}_{_RNG.randrange(1 << 20)}"
 

@@ -19,7 +19,7 @@ def test_status_is_published_during_a_long_plan(ros, monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(planner_node, "plan_move", slow_plan_move)
-    planner = ros.planner(diagnostics_period_s=0.1)
+    planner = ros.planner(diagnostics_period_s=0.1, **{"state.source": "assumed"})  # no plant: the assumed state
     ros.connected(planner, subscribers=1)
     wait_for(lambda: ros.probe.planner_status() is not None, 5.0, "a first status")
     ros.probe.goal_pub.publish(Float64(data=0.5))
