@@ -294,10 +294,104 @@ def test_commands_are_registered():
     assert "flexmotion_ros.cli.model_cmd" in names
 
 
+# ------------------------------------------------------ strict configuration (issue 11)
+def _with(tmp_path, old: str, new: str, name: str = "p.yaml") -> str:
+    text = WB_CONFIG.read_text()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    return str(path)
+
+
+def test_a_typo_in_a_key_is_refused_with_the_closest_name(capsys, tmp_path):
+    """Old main: planned with the default u_max 1.0, exit 0."""
+    path = _with(tmp_path, "u_max: 1.0 ", "u_mx: 5.0 ")
+    assert_refused(capsys, ["plan", "--config", path, "--goal", "1"], "u_mx: unknown parameter; did you mean u_max?")
+
+
+@pytest.mark.parametrize(
+    "method, option, closest",
+    [
+        ("time_optimal_friction", "colomb_force=0.1", "coulomb_force"),
+        ("zvd", "shaper.tolerence=0.2", "shaper.tolerance"),
+    ],
+)
+def test_a_typo_in_an_option_is_refused_with_the_closest_name(capsys, method, option, closest):
+    argv = ["plan", "--config", str(WB_CONFIG), "--goal", "2", "--method", method, "--option", option]
+    assert_refused(capsys, argv, f"did you mean {closest}?")
+
+
+def test_an_option_typed_by_rcl_rules(capsys):
+    base = ["plan", "--config", str(WB_CONFIG), "--goal", "2", "--method", "time_optimal_friction", "--json"]
+    assert_refused(capsys, [*base, "--option", "coulomb_force=0"], "coulomb_force", "write 0.0")
+    assert main([*base, "--option", "coulomb_force=0.1"]) == 0
+    assert json.loads(capsys.readouterr().out)["method"] == "time_optimal_friction"
+
+
+def test_an_integer_where_a_double_belongs_is_refused_as_by_the_node(capsys, tmp_path):
+    """Old main: ``u_max: 1`` planned here but the node refused the file."""
+    path = _with(tmp_path, "u_max: 1.0 ", "u_max: 1 ")
+    assert_refused(capsys, ["plan", "--config", path, "--goal", "1"], "u_max: must be a double", "write 1.0")
+
+
+def test_a_method_without_its_required_option_is_refused(capsys):
+    argv = ["plan", "--config", str(WB_CONFIG), "--goal", "1", "--method", "fixed_time"]
+    assert_refused(capsys, argv, "arrival_time: required by method fixed_time")
+
+
+def test_a_directory_as_config_is_one_line(capsys):
+    """Old main: IsADirectoryError traceback, exit 1."""
+    assert_refused(capsys, ["plan", "--config", str(ROOT / "config"), "--goal", "1"], "config", "is a directory")
+
+
+@pytest.mark.parametrize("extra", [[], ["--rate", "1000"]])
+def test_a_goal_beyond_the_move_budget_is_one_line(capsys, extra):
+    """Old main: numpy's ValueError traceback (Maximum allowed size exceeded), exit 1."""
+    argv = ["plan", "--config", str(WB_CONFIG), "--goal", "1e300", *extra]
+    assert_refused(capsys, argv, "goal: the move needs at least 2.828e+150 s", "max_move_duration_s = 3600 s")
+
+
+@pytest.mark.parametrize("goal", ["-5.03e-05", "-1E-3", "-.5", "-2.", "-1e+0"])
+def test_a_negative_goal_in_any_float_spelling(capsys, goal):
+    """Old main: ``--goal -5.03e-05`` was taken for an option ("expected one argument")."""
+    out = run_json(capsys, "--config", str(WB_CONFIG), "--goal", goal)
+    assert out["duration"] > 0.0 and out["certified"]
+
+
+def _subparsers(parser):
+    for action in parser._actions:
+        if isinstance(action.choices, dict):  # a sub-parsers action: name -> parser
+            for sub in action.choices.values():
+                yield sub
+                yield from _subparsers(sub)
+
+
+def test_every_parser_takes_negative_numbers_in_e_notation():
+    """Every sub-command (and ``model``'s kinds): a negative number in e-notation is a value, not an option."""
+    parser = cli_main.build_parser()
+    subs = list(_subparsers(parser))
+    assert len(subs) >= 8  # plan, model (+3 kinds), design, shaper, compare, demo
+    for sub in subs:
+        for text in ("-5.03e-05", "-1E+3", "-.5e1", "-inf", "-3"):
+            assert sub._negative_number_matcher.match(text), (sub.prog, text)
+        assert not sub._negative_number_matcher.match("-x") and not sub._negative_number_matcher.match("--goal")
+    args = parser.parse_args(["compare", "--config", "c.yaml", "--goal", "-5.03e-05", "--initial-velocity", "-1e-3"])
+    assert (args.goal, args.initial_velocity) == (-5.03e-05, -1e-3)
+    args = parser.parse_args(["design", "--config", "c.yaml", "--goal", "-1e-1", "--goal", "2e0", "--xtol", "1e-6"])
+    assert args.goal == [-0.1, 2.0]
+    args = parser.parse_args(["model", "two-mass", "--m1", "1", "--m2", "1", "--k", "1", "--d", "-1e-3"])
+    assert args.d == -1e-3
+
+
 # ----------------------------------------------------- installed console script
 def test_installed_console_script():
-    exe = Path(sys.executable).parent / "flexmotion"
-    assert exe.exists(), f"{exe} not installed"
+    """The installed ``flexmotion``: pip's (beside the interpreter) or colcon's (``<prefix>/lib/flexmotion_ros``)."""
+    from flexmotion_ros.cli.shipped import find_executable
+
+    exe = find_executable("flexmotion")
+    assert exe is not None, (
+        f"flexmotion not installed (not in <prefix>/lib/flexmotion_ros, beside {sys.executable}, on PATH)"
+    )
     ok = subprocess.run(
         [str(exe), "plan", "--config", str(WB_CONFIG), "--goal", "1.0", "--json"],
         capture_output=True,
