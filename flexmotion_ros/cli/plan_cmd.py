@@ -5,15 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import time
 
 import numpy as np
-import yaml
 
-from ..core.config import load_config
+from ..core.config import config_from_parameters, read_parameter_file
 from ..core.errors import ConfigError, GoalError
 from ..core.methods.table import plan_move
 from ..core.model.boundary import motion_to_rest, rest_to_rest, state_to_rest
 from ..core.model.modal_model import check_positive
+from ..core.parameters import check_parameters, parse_parameter_value
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,18 +37,25 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def config_from_args(args: argparse.Namespace):
-    """The file's configuration with ``--method`` / ``--robust-order`` applied."""
-    config = load_config(args.config)
+    """The file's parameters with ``--method``, ``--robust-order`` and ``--option`` applied, checked once.
+
+    Every name must be known and every value of its ROS type
+    (:func:`~flexmotion_ros.core.parameters.check_parameters`, the nodes' check
+    too): ``--option`` values are typed by rcl's rules, as ``-p NAME:=VALUE`` is.
+    """
+    params = read_parameter_file(args.config, "flexmotion_planner")
     if getattr(args, "method", None):
-        config = config.with_changes(method=args.method)
+        params["method"] = args.method
     if getattr(args, "robust_order", None) is not None:
-        config = config.with_changes(options={**config.options, "robust_order": args.robust_order})
+        params["robust_order"] = args.robust_order
     for item in getattr(args, "option", None) or []:
         name, sep, value = item.partition("=")
+        name = name.strip()
         if not sep or not name:
             raise ConfigError("--option", f"expected NAME=VALUE, got {item!r}")
-        config = config.with_changes(options={**config.options, name.strip(): yaml.safe_load(value)})
-    return config
+        params[name] = parse_parameter_value(value, name)
+    check_parameters(params)
+    return config_from_parameters(params)
 
 
 def problem_from_args(config, goal: float | None, initial_velocity: float | None):
@@ -73,8 +81,19 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     problem = problem_from_args(config, args.goal, args.initial_velocity)
     rate = None if args.rate is None else check_positive("rate_hz", args.rate, "Hz")
+    t0 = time.perf_counter()
     result = plan_move(config, problem, rate_hz=rate)
+    plan_time = time.perf_counter() - t0
     out = result.summary()
+    if result.sampled is not None:
+        # the sampled plan's own solve time, and the whole call (what a node waits for before streaming)
+        out["sampled_solve_time_s"] = float(result.sampled.solve_time_s)
+        out["plan_time_s"] = float(plan_time)
+    if args.goal is None:  # a stop: the final position is free, say where it is
+        if "final_state" in out:
+            out["stop_position"] = float(out["final_state"][0])
+        if result.sampled is not None:
+            out["sampled_stop_position"] = float(result.sampled.states[-1][0])
     if args.json:
         print(json.dumps(out))
         return 0
@@ -82,10 +101,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _times(values, unit: str = "", limit: int = 12) -> str:
-    """A short list: the first values, then how many more."""
+#: Levels below this fraction of the largest one are rounding noise of an LP or a Newton solve: printed as 0.
+LEVEL_ZERO = 1e-9
+
+
+def _times(values, unit: str = "", limit: int = 12, zero: float = 0.0) -> str:
+    """A short list: the first values, then how many more; ``|v| <= zero`` printed as 0."""
     values = list(values)
-    text = ", ".join(f"{v:.9f}" if unit else f"{v:+g}" for v in values[:limit]) or "-"
+    text = ", ".join(f"{v:.9f}" if unit else ("0" if abs(v) <= zero else f"{v:+g}") for v in values[:limit]) or "-"
     if len(values) > limit:
         text += f", ... ({len(values)} in all)"
     return text + (f" {unit}" if unit else "")
@@ -99,23 +122,44 @@ def _text(out: dict) -> str:
     if "switch_times" in out:
         lines.append(f"switch times      {_times(out['switch_times'], 's')}")
     if "levels" in out:
-        lines.append(f"levels            {_times(out['levels'])}")
+        zero = LEVEL_ZERO * max((abs(v) for v in out["levels"]), default=0.0)
+        rounded = any(0.0 < abs(v) <= zero for v in out["levels"])
+        note = f"  (|level| <= {LEVEL_ZERO:g} of the largest printed as 0)" if rounded else ""
+        lines.append(f"levels            {_times(out['levels'], zero=zero)}{note}")
     if "final_state_error" in out:
         rel = out.get("final_state_error_relative")
         lines.append(
             f"final-state error {out['final_state_error']:.3e}" + (f" (relative {rel:.1e})" if rel is not None else "")
         )
+    if "stop_position" in out:
+        lines.append(f"stops at          {out['stop_position']:.9f} (final position free)")
     if "certified" in out:
-        message = (out.get("certificate") or {}).get("message", "-")
-        lines.append(f"certified         {out['certified']} ({message})")
+        cert = out.get("certificate") or {}
+        claim = cert.get("claim") or out.get("optimality")
+        if claim:  # the checks passed prove only what the claim says
+            verdict = "checks passed" if out["certified"] else "checks FAILED"
+            lines.append(f"certificate       {verdict} ({cert.get('message', '-')}): {claim}")
+        else:
+            lines.append(f"certified         {out['certified']} ({cert.get('message', '-')})")
+    if "lower_bound_s" in out:
+        lines.append(f"lower bound       {out['lower_bound_s']:.9f} s (proved: no move is shorter)")
     if "solve_time_s" in out:
-        lines.append(f"solve time        {out['solve_time_s'] * 1e3:.2f} ms")
+        lines.append(
+            f"solve time        {out['solve_time_s'] * 1e3:.2f} ms" + (" (continuous)" if "samples" in out else "")
+        )
     if "samples" in out:
         lines += [
             f"rate              {out['rate_hz']:g} Hz",
             f"samples           {out['samples']} ({out['sampled_duration']:.6f} s, "
             f"{'proved fewest' if out['minimal'] else 'not proved fewest'})",
             f"sampled error     {out['sampled_final_state_error']:.3e}",
+            *(
+                [f"sampled stops at  {out['sampled_stop_position']:.9f} (final position free)"]
+                if "sampled_stop_position" in out
+                else []
+            ),
+            f"sampled solve     {out['sampled_solve_time_s'] * 1e3:.2f} ms (plan_move in all: "
+            f"{out['plan_time_s'] * 1e3:.2f} ms)",
             f"peak command      {np.max(np.abs(out['commands'])) if out['commands'] else 0.0:.9g}",
         ]
     return "\n".join(lines)

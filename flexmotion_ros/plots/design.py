@@ -7,6 +7,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from ..core.design.optimize import DesignResult
 from ..core.design.problem import rigid_bound
@@ -18,18 +19,34 @@ def _label(result: DesignResult, name: str) -> str:
     return f"{name} ({unit})" if unit else name
 
 
-def plot_design(result: DesignResult, path: str) -> None:
-    """Write the figure to ``path`` (PNG).
+def plot_design(result: DesignResult, path: str) -> Figure:
+    """Write the figure to ``path`` (PNG) and return it.
 
     One parameter: the weighted move time at every evaluated point (grid and
     refine), each task's time for a set of tasks, infeasible points as
     crosses, the start and the optimum.  Two parameters: a colour map of the
     grid with the refine points; three: the map over the first two at the
     optimal third's nearest grid value.
+
+    Failed or infeasible points are drawn on top of everything (black
+    crosses; in one dimension on a rug along the bottom axis, with their
+    values in the legend) so the optimum marker cannot hide them; the
+    parameter bounds are two vertical lines, not a shading.
+
+    Parameters
+    ----------
+    result : DesignResult
+        The design to draw.
+    path : str
+        Output PNG.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     pb = result.problem
     names = pb.names
-    fig, ax = plt.subplots(figsize=(7.0, 4.5))
+    fig, ax = plt.subplots(figsize=(10.0, 4.8))
     evs = result.evaluations
     best, start = result.best, result.start
     title = f"{pb.builder}: {pb.config.method} move time, goal " + ", ".join(f"{t.gamma:g}" for t in pb.tasks)
@@ -58,11 +75,30 @@ def plot_design(result: DesignResult, path: str) -> None:
                     alpha=0.7,
                     label=f"goal {t.gamma:g} alone (weight {t.weight:g})",
                 )
-        bad = [e.values[0] for e in inside if not e.feasible]
+        bad = sorted(e.values[0] for e in inside if not e.feasible)
         if bad:
-            y0 = min(e.objective for e in ok) if ok else 0.0
-            ax.plot(bad, [y0] * len(bad), "x", color="C3", label=f"infeasible / failed ({len(bad)})")
-        ax.axvspan(par.lower, par.upper, color="0.92", zorder=-1)
+            shown = ", ".join(f"{v:.4g}" for v in bad[:4]) + (", ..." if len(bad) > 4 else "")
+            for v in bad:
+                ax.axvline(v, color="k", lw=0.6, ls=":", zorder=7)
+            ax.plot(
+                bad,
+                [0.04] * len(bad),
+                "x",
+                color="k",
+                ms=9,
+                mew=2.0,
+                transform=ax.get_xaxis_transform(),  # x in data, y in axes fraction: a rug above the axis
+                clip_on=False,
+                zorder=8,
+                label=f"infeasible / failed ({len(bad)}): {names[0]} = {shown}",
+            )
+        for v in (par.lower, par.upper):
+            ax.axvline(v, color="0.5", lw=0.8, ls="-.", zorder=1)
+        ax.plot([], [], color="0.5", lw=0.8, ls="-.", label=f"bounds [{par.lower:g}, {par.upper:g}]")
+        if bad and ok:  # room under the lowest point for the rug of failed points
+            ys = [e.objective for e in ok] + [rigid_bound(pb, e.values) for e in ok]
+            lo, hi = min(ys), max(ys)
+            ax.set_ylim(lo - 0.2 * (hi - lo or 1.0), hi + 0.05 * (hi - lo or 1.0))
         if result.start_evaluation.feasible:
             ax.plot([start[names[0]]], [result.start_evaluation.objective], "s", color="C2", ms=7, label="start")
         ax.plot(
@@ -96,7 +132,17 @@ def plot_design(result: DesignResult, path: str) -> None:
             ax.contour(xa, ya, Z, levels=10, colors="w", linewidths=0.5, alpha=0.6)
         bad = np.argwhere(~np.isfinite(J))
         if bad.size:
-            ax.plot(xa[bad[:, 0]], ya[bad[:, 1]], "x", color="C3", label="infeasible / failed")
+            ax.plot(
+                xa[bad[:, 0]],
+                ya[bad[:, 1]],
+                "x",
+                color="m",
+                ms=8,
+                mew=2.0,
+                zorder=8,
+                clip_on=False,
+                label=f"infeasible / failed ({len(bad)})",
+            )
         on_grid = {(float(a), float(b)) for a in xa for b in ya}
         refine = [e for e in evs if e.feasible and len(names) == 2 and tuple(e.values) not in on_grid]
         if refine:
@@ -126,7 +172,7 @@ def plot_design(result: DesignResult, path: str) -> None:
         ax.set_xlabel(_label(result, names[0]))
         ax.set_ylabel(_label(result, names[1]))
     ax.set_title(title, fontsize=10)
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02 if len(names) == 1 else 1.25, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
