@@ -10,6 +10,8 @@ up to ``--kick`` N s on the actuated mass plus a random swing of each mode of
 up to ``--swing`` of its excursion in the move): an arbitrary moving,
 vibrating state.  From it, in one run:
 
+* ``r2r``: the nominal rest-to-rest move's continuous plan (20 repeats), the reference
+  the other columns compare with (same run, same load);
 * ``cont``: ``plan_move`` without a rate -- the certified continuous plan;
 * ``sampled``: ``plan_move`` at ``--rate`` -- the exact ZOH plan a node needs to stream;
 * ``replan``: ``execution.replan.replan`` -- carry the estimate to the splice
@@ -70,10 +72,10 @@ def main() -> None:
         f"kick <= {a.kick} N s, swing <= {a.swing:.0%} of the move's"
     )
     print(
-        f"{'modes':>5} {'move m':>7} {'T nom s':>8} | {'cont med':>8} {'p99':>8} {'max':>8} | "
+        f"{'modes':>5} {'move m':>7} {'T nom s':>8} | {'r2r med':>8} | {'cont med':>8} {'p99':>8} {'max':>8} | "
         f"{'ZOH med':>8} {'p99':>8} {'max':>8} | {'rpl med':>8} {'p99':>8} {'max':>8} | {'failed':>6}"
     )
-    print("-" * 114)
+    print("-" * 125)
     for n in (1, 2, 3):
         built = chain([0.5] * (n + 1), [400.0] * n, [0.4] * n)
         model = built.model
@@ -83,6 +85,11 @@ def main() -> None:
         nominal = plan_move(cfg, rest_to_rest(model, u_max, gamma), a.rate).sampled
         seg = Segment(np.asarray(nominal.commands, float), np.asarray(nominal.states, float), start=0)
         excursion = np.max(np.abs(nominal.states[:, 2::2]), axis=0)
+        r2r = []
+        for _ in range(20):
+            t0 = time.perf_counter()
+            plan_move(cfg, rest_to_rest(model, u_max, gamma), None)
+            r2r.append(1e3 * (time.perf_counter() - t0))
         cont, sampled, full, failed = [], [], [], 0
         for _ in range(a.states):
             k = int(rng.uniform(0.1, 0.9) * seg.samples)
@@ -108,7 +115,7 @@ def main() -> None:
             elif out.status is ReplanStatus.FAILED:
                 failed += 1
         print(
-            f"{n:5d} {gamma:7.3g} {nominal.duration:8.3f} | {stats(cont)} | {stats(sampled)} | "
+            f"{n:5d} {gamma:7.3g} {nominal.duration:8.3f} | {np.median(r2r):8.2f} | {stats(cont)} | {stats(sampled)} | "
             f"{stats(full)} | {failed:6d}"
         )
 

@@ -174,12 +174,16 @@ class HeldPiece:
         When the point's state is due: the end of the whole piece (ns); None
         after the last point (held for ever).
     point : TrajectoryPoint
+    begins : bool
+        ``start_ns`` is where the point starts being output (a new setpoint),
+        not just the start of the query window.
     """
 
     start_ns: int
     end_ns: int
     due_ns: int | None
     point: TrajectoryPoint
+    begins: bool = False
 
 
 def held_pieces(
@@ -203,6 +207,7 @@ def held_pieces(
     if settings.interpolation is not Interpolation.NONE:
         raise ValueError("held_pieces needs interpolation_method none")
     times = trajectory.point_times_ns() - settings.lookahead_ns
+    boundaries = {int(t) for t in times}
     cuts = [int(t) for t in times if t_from_ns < t < t_to_ns]
     bounds = [t_from_ns, *cuts, t_to_ns]
     out = []
@@ -213,7 +218,8 @@ def held_pieces(
         if pt is None:
             raise ValueError("nothing to play before the trajectory's first point: give the point before it")
         later = times[times > lo]
-        out.append(HeldPiece(start_ns=lo, end_ns=hi, due_ns=int(later[0]) if later.size else None, point=pt))
+        due = int(later[0]) if later.size else None
+        out.append(HeldPiece(start_ns=lo, end_ns=hi, due_ns=due, point=pt, begins=lo in boundaries))
     return out
 
 

@@ -193,3 +193,40 @@ def test_held_pieces_change_at_the_sample_instants_not_at_the_plant_ticks(wb_com
     t_rel = (times - clock.at(-3)) / NS
     x = final_state(WB, WB.rest_state(0.0), PiecewiseConstant(t_rel, np.array(levels)))
     assert abs(x[0] - GOAL) < 1e-9 and abs(x[1]) < 1e-9 and modal_amplitudes(WB, x)[0] < 1e-9
+
+
+@pytest.mark.parametrize("iface", [CommandInterface.VELOCITY, CommandInterface.POSITION], ids=lambda c: c.value)
+def test_a_plant_stepping_by_its_own_jittered_clock_plays_the_plan_exactly(iface, crane_commands):
+    """The plant node's loop: held pieces between its ticks, the servo stepped over each piece exactly."""
+    from flexmotion_ros.core.interfaces import Servo, servo_advance, servo_setpoint, servo_start
+
+    clock = SampleClock(origin_ns=ORIGIN_NS, rate_hz=RATE)
+    settings = ReceiverSettings.jazzy(1000.0)
+    ref = reference_for(CRANE, crane_commands, clock.dt, CRANE.rest_state(0.0), iface)
+    traj = encode(ref, interface=iface, joint_name="cart", clock=clock, settings=settings)
+    hold = TrajectoryPoint(time_from_start_ns=0, positions=(0.0,), velocities=(0.0,))
+    rng = np.random.default_rng(9)
+    end = clock.at(ref.samples + 30)
+    ticks = np.unique(np.concatenate([[clock.at(-2)], rng.integers(clock.at(-2), end, 300), [end]]))
+    for servo in (Servo(), Servo(bandwidth=50.0)):
+        state = servo_start(CRANE, CRANE.rest_state(0.0), iface, servo)
+        started = False
+        for a, b in zip(ticks[:-1], ticks[1:]):
+            for piece in held_pieces(traj, int(a), int(b), settings, hold):
+                if piece.begins or not started:  # a new setpoint, due at the end of its whole piece
+                    started = True
+                    due = piece.due_ns if piece.due_ns is not None else piece.start_ns + round(NS / RATE)
+                    state = servo_setpoint(state, piece.point.field(iface)[0], (due - piece.start_ns) / NS, iface)
+                arrive = piece.end_ns == piece.due_ns
+                state = servo_advance(CRANE, state, (piece.end_ns - piece.start_ns) / NS, iface, servo, arrive)
+        values = np.concatenate(
+            [
+                np.zeros(2),
+                setpoints(ref, iface),
+                np.full(30, ref.positions[-1] if iface is CommandInterface.POSITION else 0.0),
+            ]
+        )
+        want = simulate_servo(CRANE, CRANE.rest_state(0.0), values, clock.dt, iface, servo).states[-1]
+        np.testing.assert_allclose(state.x, want, rtol=0, atol=1e-9)
+        if servo.ideal:
+            assert abs(state.x[0] - GOAL) < 1e-9 and modal_amplitudes(CRANE, state.x)[0] < 1e-9

@@ -122,6 +122,111 @@ def servo_matrices(model: ModalModel, dt: float, servo: Servo) -> tuple[np.ndarr
     return step_matrices(F, G, dt)
 
 
+@dataclass(frozen=True, kw_only=True)
+class ServoState:
+    """The plant and its servo's reference at one instant (for a plant that steps by its own clock).
+
+    Attributes
+    ----------
+    x : ndarray
+        Plant state ``[p, v, q_1, q_1', ...]``.
+    reference_position, reference_velocity : float
+        The servo's rebuilt reference ``r_p`` (m), ``r_v`` (m/s).
+    acceleration : float
+        The input held now: the reference acceleration of the current interval
+        (m/s^2), or the force for an effort joint (N).
+    setpoint : float or None
+        The setpoint being tracked (None before the first).
+    """
+
+    x: np.ndarray
+    reference_position: float
+    reference_velocity: float
+    acceleration: float = 0.0
+    setpoint: float | None = None
+
+
+def servo_start(model: ModalModel, x0, interface: CommandInterface | str, servo: Servo | None = None) -> ServoState:
+    """The servo taking over the plant at state ``x0``: its reference starts at the joint's state.
+
+    A first-order position servo ties the joint's velocity to its position
+    error (``v = w_s (r_p - p) = 0``): a moving joint's velocity jumps to 0, an
+    impulse on the modes, applied exactly.
+    """
+    iface = command_interface(interface)
+    servo = servo or Servo()
+    check_acceleration_model(model, iface)
+    x = np.array(x0, dtype=float).ravel()
+    rp, rv = float(x[0]), float(x[1])
+    if iface is CommandInterface.POSITION and not servo.ideal and x[1] != 0.0:
+        x = x + (model.B() / model.b0) * (-x[1])  # every velocity jumps with the joint's
+    return ServoState(x=x, reference_position=rp, reference_velocity=rv)
+
+
+def servo_setpoint(state: ServoState, value: float, interval_s: float, interface: CommandInterface | str) -> ServoState:
+    """A new setpoint, due ``interval_s`` (s) from now: the input held until then (module docstring).
+
+    ``effort``: the force itself; ``velocity``: ``(s - r_v) / h``; ``position``:
+    ``2 (s - r_p - r_v h) / h^2``.
+    """
+    iface = command_interface(interface)
+    h = float(interval_s)
+    if iface is CommandInterface.EFFORT:
+        a = float(value)
+    elif iface is CommandInterface.VELOCITY:
+        a = (value - state.reference_velocity) / h
+    else:
+        a = 2.0 * (value - state.reference_position - state.reference_velocity * h) / (h * h)
+    return ServoState(
+        x=state.x,
+        reference_position=state.reference_position,
+        reference_velocity=state.reference_velocity,
+        acceleration=a,
+        setpoint=float(value),
+    )
+
+
+def servo_advance(
+    model: ModalModel,
+    state: ServoState,
+    h: float,
+    interface: CommandInterface | str,
+    servo: Servo | None = None,
+    arrive: bool = False,
+) -> ServoState:
+    """The plant and reference ``h`` seconds later, exactly, with the input of ``state`` held.
+
+    ``arrive``: ``h`` ends where the setpoint is due; the reference is then
+    set to it exactly (drops the rounding of the rebuilt acceleration).
+    """
+    iface = command_interface(interface)
+    servo = servo or Servo()
+    if h <= 0.0:
+        return state
+    n = model.n_states
+    if iface is CommandInterface.EFFORT:
+        Phi, Gam = step_matrices(model.A(), model.B(), h)
+        x = Phi @ state.x + Gam * state.acceleration
+        return ServoState(
+            x=x,
+            reference_position=float(x[0]),
+            reference_velocity=float(x[1]),
+            acceleration=state.acceleration,
+            setpoint=state.setpoint,
+        )
+    Phi, Gam = servo_matrices(model, h, servo)
+    z = Phi @ np.concatenate([state.x, [state.reference_position, state.reference_velocity]]) + Gam * state.acceleration
+    rp, rv = float(z[n]), float(z[n + 1])
+    if arrive and state.setpoint is not None:
+        if iface is CommandInterface.VELOCITY:
+            rv = state.setpoint
+        else:
+            rp = state.setpoint
+    return ServoState(
+        x=z[:n], reference_position=rp, reference_velocity=rv, acceleration=state.acceleration, setpoint=state.setpoint
+    )
+
+
 def simulate_servo(
     model: ModalModel,
     x0,
@@ -154,44 +259,29 @@ def simulate_servo(
     """
     iface = command_interface(interface)
     servo = servo or Servo()
-    check_acceleration_model(model, iface)
     s = np.asarray(values, dtype=float).ravel()
-    x = np.array(x0, dtype=float).ravel()
-    n = model.n_states
+    state = servo_start(model, x0, iface, servo)
     K = s.size
-    states = np.empty((K + 1, n))
+    states = np.empty((K + 1, model.n_states))
     rp = np.empty(K + 1)
     rv = np.empty(K + 1)
     acc = np.empty(K)
-    if iface is CommandInterface.EFFORT:
-        Phi, Gam = step_matrices(model.A(), model.B(), dt)
-        states[0] = x
-        for k in range(K):
-            x = Phi @ x + Gam * s[k]
-            states[k + 1] = x
-        acc[:] = s
-        rp[:] = states[:, 0]
-        rv[:] = states[:, 1]
-        return ServoRun(states=states, reference_positions=rp, reference_velocities=rv, accelerations=acc)
-    if iface is CommandInterface.POSITION and not servo.ideal:
-        # the first-order position servo ties the joint's velocity to its position error (0 from rest)
-        dv = -x[1]  # v(0) = w_s (r_p(0) - p(0)) = 0: the reference starts at the joint's position
-        if dv != 0.0:
-            x = x + (model.B() / model.b0) * dv  # an impulse of joint acceleration: v and every mode velocity jump
-    Phi, Gam = servo_matrices(model, dt, servo)
-    z = np.concatenate([x, [x[0], x[1]]])
-    states[0], rp[0], rv[0] = x, z[n], z[n + 1]
+    states[0], rp[0], rv[0] = state.x, state.reference_position, state.reference_velocity
     for k in range(K):
-        if iface is CommandInterface.VELOCITY:
-            a = (s[k] - z[n + 1]) / dt
-        else:
-            a = 2.0 * (s[k] - z[n] - z[n + 1] * dt) / (dt * dt)
-        z = Phi @ z + Gam * a
-        # the reference is the setpoint at the sample instant (drops the rounding of a_k)
-        z[n + (1 if iface is CommandInterface.VELOCITY else 0)] = s[k]
-        acc[k] = a
-        states[k + 1], rp[k + 1], rv[k + 1] = z[:n], z[n], z[n + 1]
+        state = servo_setpoint(state, s[k], dt, iface)
+        acc[k] = state.acceleration
+        state = servo_advance(model, state, dt, iface, servo, arrive=True)
+        states[k + 1], rp[k + 1], rv[k + 1] = state.x, state.reference_position, state.reference_velocity
     return ServoRun(states=states, reference_positions=rp, reference_velocities=rv, accelerations=acc)
 
 
-__all__ = ["Servo", "ServoRun", "servo_matrices", "simulate_servo"]
+__all__ = [
+    "Servo",
+    "ServoRun",
+    "ServoState",
+    "servo_advance",
+    "servo_matrices",
+    "servo_setpoint",
+    "servo_start",
+    "simulate_servo",
+]
