@@ -13,6 +13,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import settings as hypothesis_settings
+from hypothesis import strategies as st
 
 from flexmotion_ros.core.config import PlannerConfig
 from flexmotion_ros.core.errors import ConfigError
@@ -230,3 +233,27 @@ def test_a_plant_stepping_by_its_own_jittered_clock_plays_the_plan_exactly(iface
         np.testing.assert_allclose(state.x, want, rtol=0, atol=1e-9)
         if servo.ideal:
             assert abs(state.x[0] - GOAL) < 1e-9 and modal_amplitudes(CRANE, state.x)[0] < 1e-9
+
+
+@hypothesis_settings(max_examples=40)
+@given(
+    rate=st.floats(5.0, 2000.0),
+    lookahead_periods=st.floats(0.0, 3.0),
+    origin=st.integers(-(10**18), 10**18),
+    first=st.integers(-1000, 1000),
+    commands=st.lists(st.floats(-1.0, 1.0), min_size=1, max_size=40),
+    phase=st.floats(0.0, 1.0, exclude_max=True),
+)
+def test_property_any_rate_lookahead_and_origin_play_the_sequence_exactly(
+    rate, lookahead_periods, origin, first, commands, phase
+):
+    clock = SampleClock(origin_ns=origin, rate_hz=rate)
+    settings = ReceiverSettings(lookahead_ns=int(lookahead_periods * NS / rate))
+    ref = reference_for(WB, commands, clock.dt, WB.rest_state(0.0))
+    traj = encode(ref, interface="effort", joint_name="j", clock=clock, first_sample=first, settings=settings)
+    hold = TrajectoryPoint(time_from_start_ns=0, positions=(0.0,), effort=(0.0,))
+    for k, u in enumerate(commands):
+        lo, hi = clock.at(first + k), clock.at(first + k + 1)
+        for tau in (lo, hi - 1, lo + int(phase * (hi - lo))):
+            assert sample(traj, tau + settings.lookahead_ns, "none", hold).effort == (u,)
+    assert sample(traj, clock.at(first + len(commands)) + settings.lookahead_ns, "none", hold).effort == (0.0,)
