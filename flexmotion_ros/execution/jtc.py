@@ -4,8 +4,11 @@ Source: ros-controls/ros2_controllers, branch ``jazzy`` (read 2026-12 at
 ``ed360c9``): ``joint_trajectory_controller/src/trajectory.cpp``
 (``Trajectory::sample``, ``interpolate_between_points``) and
 ``src/joint_trajectory_controller.cpp`` (``update``); the behaviour below has
-been there since 4.17 (#1306 "Sample at t + dT", #1395 "sum periods"), with
-feed-forward effort since #1200.
+been there since 4.17.0 (#1306 "Sample at t + dT", #1395 "sum periods"); the
+effort field reaches an effort command interface since 4.22.0 (#1200,
+feed-forward effort).  Humble's JTC (2.x) samples at ``t`` (no look-ahead)
+and has no feed-forward effort.  No ``ros2_controllers`` is installed here:
+this is a re-implementation from the source, not a test against the binary.
 
 :func:`sample` -- ``Trajectory::sample(t)``, with ``T_i = stamp + time_from_start_i``:
 

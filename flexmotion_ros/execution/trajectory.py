@@ -43,6 +43,23 @@ the splice.  On the same sample clock its points fall on exactly the same
 instants (integer nanoseconds) as the old ones, so whichever tick installs it
 before the splice, the output is unchanged until the splice and the new plan
 from there.
+
+JTC settings for an exact zero-order hold (ros2_controllers >= 4.22.0 on
+Jazzy; an effort joint needs #1200's feed-forward effort):
+``interpolation_method: none`` (``splines`` for velocity / position only),
+``interpolate_from_desired_state: true`` (before a trajectory's first point it
+outputs the last command, not the measured state); an effort-only joint goes
+through the JTC's PID adapter (``ff_velocity_scale v + effort + PID``), so
+``gains.<joint>: {p: 0.0, i: 0.0, d: 0.0, ff_velocity_scale: 0.0}``: the
+command is the effort field alone; a velocity-only joint goes through it too
+(``ff_velocity_scale v + PID``), so ``{p: 0.0, i: 0.0, d: 0.0,
+ff_velocity_scale: 1.0}``: the command is the velocity field (a joint that
+claims ``[position, velocity]`` gets both fields directly, no adapter);
+speed scaling 1, tolerances
+left at 0 (no abort), the sender's and the controller's clocks the same (a
+stamp in the future is honoured to the nanosecond), and the controller's
+``update_rate`` an integer multiple of the plan's rate (its ticks then fall on
+every sample instant, up to a constant phase that only delays the whole move).
 """
 
 from __future__ import annotations
