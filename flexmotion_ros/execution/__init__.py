@@ -14,11 +14,17 @@ and logging):
   (stop, fault) sends the hold and says why (:class:`StreamHalt`);
 * :mod:`.measured_state` -- the machine's measured state: settings, the
   state vector from joint names, staleness;
-* :mod:`.summary` -- the plan's figures the planner reports.
+* :mod:`.summary` -- the plan's figures the planner reports;
+* :mod:`.trajectory` -- a plan as ``JointTrajectory`` data a
+  ``joint_trajectory_controller`` plays exactly, and the replacement after a splice;
+* :mod:`.jtc` -- the JTC's sampling rule and update loop, re-implemented;
+* :mod:`.replan` -- closed-loop replanning from an estimated state.
 """
 
 from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
+from .jtc import HeldPiece, TrajectoryPlayer, held_pieces, sample, started
 from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
+from .replan import ReplanOutcome, ReplanPoint, ReplanStatus, replan, replan_point
 from .splice import (
     DEFAULT_PLAN_TIME_S,
     PLAN_TIME_FACTOR,
@@ -35,6 +41,16 @@ from .splice import (
 )
 from .summary import plan_summary
 from .timeline import HOLD, Segment, predicted_state
+from .trajectory import (
+    Interpolation,
+    JointTrajectory,
+    ReceiverSettings,
+    SampleClock,
+    TrajectoryPoint,
+    encode,
+    timeline_commands,
+    timeline_trajectory,
+)
 
 __all__ = [
     "DEFAULT_PLAN_TIME_S",
@@ -62,4 +78,23 @@ __all__ = [
     "splice_point",
     "state_settings",
     "state_vector",
+    # trajectory output, the JTC's rule, replanning (issue 14)
+    "HeldPiece",
+    "Interpolation",
+    "JointTrajectory",
+    "ReceiverSettings",
+    "ReplanOutcome",
+    "ReplanPoint",
+    "ReplanStatus",
+    "SampleClock",
+    "TrajectoryPlayer",
+    "TrajectoryPoint",
+    "encode",
+    "held_pieces",
+    "replan",
+    "replan_point",
+    "sample",
+    "started",
+    "timeline_commands",
+    "timeline_trajectory",
 ]
