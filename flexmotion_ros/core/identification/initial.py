@@ -1,0 +1,161 @@
+"""First estimates of the modes: OKID/ERA on block-averaged data, ranked by the exact fit.
+
+Machines are sampled far faster than they vibrate (1 kHz for a 0.4 Hz crane):
+at the full rate the poles crowd ``z = 1`` and any realization is
+ill-conditioned.  So the first estimate works on block averages of ``s``
+samples: averaging input and output with the same filter keeps their
+relation (the system and the filter commute), cuts the noise by ``sqrt(s)``
+and spreads the poles around the unit circle.  Each ``s = 1, 2, 4, ...``
+(while at least :data:`MIN_COARSE_SAMPLES` blocks remain) gives
+Markov parameters (:func:`~flexmotion_ros.core.identification.era.observer_markov`)
+and ERA realizations of a few orders; every complex pole pair that completes a
+cycle within the record, below the block rate's Nyquist frequency, is a
+candidate mode; each realization proposes its ``N`` most energetic ones
+(largest ``|C v| |w^T B| / sqrt(1 - |lambda|^2)``).  The proposals are ranked by
+the residual of the exact full-rate model with the best linear parameters
+(:meth:`~flexmotion_ros.core.identification.forward.ForwardModel.linear_fit`),
+so a wrong block size or a spurious pole simply loses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data import IdentificationData
+from .era import era, observer_markov
+from .forward import ForwardModel
+
+#: Fewest blocks a block size must leave (the ARX fit needs many more rows than parameters).
+MIN_COARSE_SAMPLES = 150
+#: Hankel block rows and columns (coarse samples spanned: twice this).
+HANKEL_SIZE = 40
+#: Extra ERA orders tried above the rigid body plus 2 N (room for noise poles).
+EXTRA_ORDERS = (0, 2, 4)
+#: Candidate modes must have a damping ratio below this (lighter than critically damped, by far).
+MAX_CANDIDATE_ZETA = 0.5
+#: ... and lie below this fraction of the block rate's Nyquist frequency.
+COARSE_NYQUIST_FRACTION = 0.8
+#: Two proposals whose frequencies all agree to this relative tolerance are one.
+SAME_START_RTOL = 0.02
+
+
+@dataclass(frozen=True, kw_only=True)
+class Start:
+    """A first estimate: modal frequencies (rad/s) and damping ratios, and where it came from."""
+
+    omega: tuple[float, ...]
+    zeta: tuple[float, ...]
+    c: float = 0.0
+    rss: float = math.inf
+    block: int = 1
+    order: int = 0
+
+
+def block_average(x: np.ndarray, s: int) -> np.ndarray:
+    """Means of consecutive blocks of ``s`` samples (a trailing partial block dropped)."""
+    n = (x.shape[0] // s) * s
+    return x[:n].reshape(n // s, s, *x.shape[1:]).mean(axis=1)
+
+
+def rigid_states(data: IdentificationData) -> int:
+    """States the rigid body adds to a realization: 2 if any output reads position, else 1."""
+    return 2 if any(o.kind == "position" and o.rigid_weight != 0.0 for o in data.outputs) else 1
+
+
+def _candidates(A, B, C, h: float, duration: float, nyquist: float) -> list[tuple[float, float, float]]:
+    """``(omega, zeta, energy)`` of each admissible complex pole pair of a coarse realization."""
+    lam, V = np.linalg.eig(A)
+    W = np.linalg.inv(V)
+    out = []
+    for i, z in enumerate(lam):
+        if z.imag <= 0.0 or abs(z) >= 1.0 + 1e-9 or abs(z) == 0.0:
+            continue
+        s = np.log(z) / h
+        w = abs(s)
+        zeta = -s.real / w
+        wd = s.imag
+        if not (0.0 <= zeta < MAX_CANDIDATE_ZETA) or wd * duration < 2.0 * math.pi:
+            continue
+        if w > COARSE_NYQUIST_FRACTION * nyquist:
+            continue
+        energy = float(np.linalg.norm(C @ V[:, i]) * abs(W[i] @ B[:, 0]) / math.sqrt(max(1.0 - abs(z) ** 2, 1e-300)))
+        out.append((float(w), float(zeta), energy))
+    return out
+
+
+def _distinct(starts: list[Start], new: Start) -> bool:
+    for s in starts:
+        if all(abs(a - b) <= SAME_START_RTOL * b for a, b in zip(sorted(new.omega), sorted(s.omega))):
+            return False
+    return True
+
+
+def initial_estimates(
+    data: IdentificationData, n_modes: int, keep: int = 3, extra: tuple[Start, ...] = ()
+) -> tuple[list[Start], np.ndarray]:
+    """The ``keep`` best distinct first estimates of ``n_modes`` modes, best first.
+
+    Parameters
+    ----------
+    data : IdentificationData
+    n_modes : int
+    keep : int
+        How many distinct proposals to return.
+    extra : tuple of Start
+        Proposals from elsewhere (a prior model), ranked with the rest.
+
+    Returns
+    -------
+    starts : list of Start
+        Ranked by the full-rate residual (``rss``).  Empty if no realization
+        proposed ``n_modes`` admissible modes.
+    singular_values : ndarray
+        Hankel singular values of the winning block size (normalised by the largest).
+    """
+    fm = ForwardModel(data, n_modes)
+    if n_modes == 0:
+        _, rss = fm.linear_fit(0.0, [], [])
+        return [Start(omega=(), zeta=(), rss=float(rss.sum()))], np.zeros(0)
+    Y = np.column_stack([o.samples for o in data.outputs])
+    nr = rigid_states(data)
+    proposals: list[Start] = list(extra)
+    svs: dict[int, np.ndarray] = {}
+    s = 1
+    while data.samples // s >= MIN_COARSE_SAMPLES:
+        uc, yc = block_average(data.u, s), block_average(Y, s)
+        h = s * data.dt
+        for add in EXTRA_ORDERS:
+            r = nr + 2 * n_modes + add
+            p = 2 * r + 4
+            rows = min(HANKEL_SIZE, max(r + 2, (uc.size - p) // 4))
+            if uc.size < 4 * p * (1 + Y.shape[1]) or rows < r:
+                continue
+            markov = observer_markov(uc, yc, p, 2 * rows + 1)
+            A, B, C, _, S = era(markov, r, rows, rows)
+            svs.setdefault(s, S / S[0])
+            found = _candidates(A, B, C, h, data.duration, math.pi / h)
+            if len(found) >= n_modes:
+                best = sorted(found, key=lambda t: -t[2])[:n_modes]
+                best.sort()
+                proposals.append(
+                    Start(omega=tuple(b[0] for b in best), zeta=tuple(b[1] for b in best), block=s, order=r)
+                )
+        s *= 2
+    ranked: list[Start] = []
+    for st in proposals:
+        if len(st.omega) != n_modes or len({round(w, 9) for w in st.omega}) != n_modes:
+            continue
+        _, rss = fm.linear_fit(st.c, st.omega, st.zeta)
+        ranked.append(Start(omega=st.omega, zeta=st.zeta, c=st.c, rss=float(rss.sum()), block=st.block, order=st.order))
+    ranked.sort(key=lambda st: st.rss)
+    out: list[Start] = []
+    for st in ranked:
+        if _distinct(out, st):
+            out.append(st)
+        if len(out) == keep:
+            break
+    winner = out[0].block if out else 1
+    return out, svs.get(winner, np.zeros(0))
