@@ -24,6 +24,7 @@ Pappa 1985), the same construction as ``control.eigensys_realization``.
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 
 
 def fir_markov(u: np.ndarray, y: np.ndarray, m: int) -> np.ndarray:
@@ -91,6 +92,12 @@ def observer_markov(u: np.ndarray, y: np.ndarray, order: int, count: int) -> np.
         base = 1 + (j - 1) * (1 + q)
         beta[j] = theta[base]
         alpha[j] = theta[base + 1 : base + 1 + q].T  # y_k = ... + alpha_j y_{k-j}
+    if q == 1:  # the recursion is the impulse response of (D + sum beta_j z^-j) / (1 - sum alpha_j z^-j)
+        impulse = np.zeros(count + 1)
+        impulse[0] = 1.0
+        num = np.concatenate([D, beta[1:, 0]])
+        den = np.concatenate([[1.0], -alpha[1:, 0, 0]])
+        return lfilter(num, den, impulse)[:, None]
     Y = np.zeros((count + 1, q))
     Y[0] = D
     for k in range(1, count + 1):

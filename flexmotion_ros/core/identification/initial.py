@@ -14,7 +14,9 @@ candidate mode; each realization proposes its ``N`` most energetic ones
 (largest ``|C v| |w^T B| / sqrt(1 - |lambda|^2)``).  The proposals are ranked by
 the residual of the exact full-rate model with the best linear parameters
 (:meth:`~flexmotion_ros.core.identification.forward.ForwardModel.linear_fit`),
-so a wrong block size or a spurious pole simply loses.
+so a wrong block size or a spurious pole simply loses.  One more proposal
+comes from residual spectra (:func:`spectral_start`), for data too noisy for
+a realization.
 """
 
 from __future__ import annotations
@@ -38,6 +40,11 @@ EXTRA_ORDERS = (0, 2, 4)
 MAX_CANDIDATE_ZETA = 0.5
 #: ... and lie below this fraction of the block rate's Nyquist frequency.
 COARSE_NYQUIST_FRACTION = 0.8
+#: Zero padding of the residual spectra of :func:`spectral_start` (finer peaks).
+SPECTRAL_PADDING = 4
+#: Spectral peaks tried per mode, and the damping ratios tried at each.
+SPECTRAL_PEAKS = 5
+SPECTRAL_ZETAS = (0.005, 0.02, 0.08)
 #: Two proposals whose frequencies all agree to this relative tolerance are one.
 SAME_START_RTOL = 0.02
 
@@ -93,6 +100,50 @@ def _distinct(starts: list[Start], new: Start) -> bool:
     return True
 
 
+def spectral_start(data: IdentificationData, n_modes: int) -> Start | None:
+    """A first estimate that does not need a realization: modes one at a time from residual spectra.
+
+    With ``k`` modes found, fit them (and the rigid body) linearly, take the
+    Hann-windowed, zero-padded amplitude spectrum of each output's residual
+    (normalised by its level) and try its :data:`SPECTRAL_PEAKS` highest local
+    maxima in the admissible range, each with the damping ratios
+    :data:`SPECTRAL_ZETAS`; the exact full-rate fit picks mode ``k + 1``.
+    Where a realization is swamped by noise (a mode seen at 0 dB through a
+    non-collocated sensor) the matched filter of a spectrum still finds it.
+    """
+    n = data.samples
+    window = np.hanning(n)
+    freqs = 2.0 * math.pi * np.fft.rfftfreq(SPECTRAL_PADDING * n, data.dt)
+    lo = 2.0 * math.pi / data.duration
+    hi = COARSE_NYQUIST_FRACTION * data.nyquist
+    omega: list[float] = []
+    zeta: list[float] = []
+    for k in range(n_modes):
+        fm = ForwardModel(data, k)
+        theta, _ = fm.linear_fit(0.0, omega, zeta)
+        spectrum = np.zeros(freqs.size)
+        for y, p in zip(fm.y, fm.predict(theta)):
+            r = y - p
+            spectrum += np.abs(np.fft.rfft(window * (r - r.mean()) / max(float(np.std(r)), 1e-300), SPECTRAL_PADDING * n))
+        peak = (spectrum[1:-1] > spectrum[:-2]) & (spectrum[1:-1] >= spectrum[2:])
+        idx = np.flatnonzero(peak) + 1
+        idx = idx[(freqs[idx] >= lo) & (freqs[idx] <= hi)]
+        # a found mode's own window main lobe (+-2 bins of the record) is not a new mode
+        lobe = 4.0 * math.pi / data.duration
+        idx = [i for i in idx if all(abs(freqs[i] - w) > max(SAME_START_RTOL * w, lobe) for w in omega)]
+        if not idx:
+            return None
+        best = sorted(idx, key=lambda i: -spectrum[i])[:SPECTRAL_PEAKS]
+        fm_next = ForwardModel(data, k + 1)
+        trials = [(float(freqs[i]), z) for i in best for z in SPECTRAL_ZETAS]
+        scores = [float(fm_next.linear_fit(0.0, omega + [w], zeta + [z])[1].sum()) for w, z in trials]
+        w, z = trials[int(np.argmin(scores))]
+        omega.append(w)
+        zeta.append(z)
+    order = np.argsort(omega)
+    return Start(omega=tuple(omega[i] for i in order), zeta=tuple(zeta[i] for i in order), block=0)
+
+
 def initial_estimates(
     data: IdentificationData, n_modes: int, keep: int = 3, extra: tuple[Start, ...] = ()
 ) -> tuple[list[Start], np.ndarray]:
@@ -122,6 +173,9 @@ def initial_estimates(
     Y = np.column_stack([o.samples for o in data.outputs])
     nr = rigid_states(data)
     proposals: list[Start] = list(extra)
+    spectral = spectral_start(data, n_modes)
+    if spectral is not None:
+        proposals.append(spectral)
     svs: dict[int, np.ndarray] = {}
     s = 1
     while data.samples // s >= MIN_COARSE_SAMPLES:
