@@ -25,11 +25,10 @@ SAMPLES_PER_PARAMETER = 10
 TIME_GRID_TOL = 0.01
 #: A signal whose spread is below this fraction of its size is constant (no excitation / no response).
 CONSTANT_RTOL = 1e-12
-#: Runs of equal consecutive samples at an extreme of this length are a clipped (saturated) sensor ...
+#: An extreme value held this many samples, and CLIP_RATIO times longer than any other value, is a
+#: clipped (saturated) sensor (:func:`check_clipping`).
 CLIP_RUN = 5
-#: ... unless equal consecutive samples are common everywhere (a quantised encoder): then it takes
-#: the extreme value held in two separate runs.
-QUANTISED_FRACTION = 0.01
+CLIP_RATIO = 4.0
 
 
 def _as_signal(name: str, values, n: int | None) -> np.ndarray:
@@ -131,31 +130,38 @@ def _spread_is_zero(x: np.ndarray) -> bool:
     return float(np.ptp(x)) <= CONSTANT_RTOL * max(float(np.max(np.abs(x))), 1e-300)
 
 
-def _runs_at(x: np.ndarray, value: float) -> list[int]:
-    """Lengths of the runs of consecutive samples equal to ``value``, except a first or last one.
-
-    A machine at rest before or after the excitation reads a constant; a
-    sensor on its rail does so in the middle of the motion.
-    """
-    hit = np.concatenate([[False], x == value, [False]])
-    edges = np.flatnonzero(np.diff(hit.astype(np.int8)))
-    starts, ends = edges[::2], edges[1::2]
-    inner = (starts > 0) & (ends < x.size)
-    return list((ends - starts)[inner])
+def run_lengths(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Runs of equal consecutive samples: their values, lengths and first indices."""
+    change = np.flatnonzero(np.diff(x) != 0.0) + 1
+    starts = np.concatenate([[0], change])
+    lengths = np.diff(np.concatenate([starts, [x.size]]))
+    return x[starts], lengths, starts
 
 
 def check_clipping(name: str, x: np.ndarray) -> None:
-    """Refuse a signal that sits on a rail: a sensor at the end of its range reads a constant."""
-    repeats = float(np.mean(x[1:] == x[:-1]))
+    """Refuse a signal that sits on a rail: a saturated sensor reads a constant at its extreme.
+
+    Clipped: the extreme value is held for at least :data:`CLIP_RUN` samples
+    and :data:`CLIP_RATIO` times longer than any other value is held.  Noisy
+    readings never repeat, a quantised encoder repeats every level it
+    crosses slowly (its peaks too, but not much longer than the levels next to
+    them), a rail holds far longer.  A run from the first sample (the machine
+    at rest before the excitation) does not count.
+    """
+    values, lengths, starts = run_lengths(x)
+    keep = starts > 0
+    values, lengths = values[keep], lengths[keep]
+    if values.size == 0:
+        return
     for value, where in ((float(np.max(x)), "maximum"), (float(np.min(x)), "minimum")):
-        runs = _runs_at(x, value)
-        longest = max(runs, default=0)
-        clipped = len([r for r in runs if r >= 2]) >= 2 if repeats > QUANTISED_FRACTION else longest >= CLIP_RUN
-        if clipped:
+        at = values == value
+        longest = int(lengths[at].max(initial=0))
+        other = int(lengths[~at].max(initial=1))
+        if longest >= CLIP_RUN and longest >= CLIP_RATIO * other:
             raise InputError(
                 name,
-                f"looks clipped: it holds its {where} {value:.6g} for {longest} consecutive samples "
-                f"({len(runs)} run(s)); a saturated sensor hides the response: record within its range",
+                f"looks clipped: it holds its {where} {value:.6g} for {longest} consecutive samples (no other "
+                f"value for more than {other}); a saturated sensor hides the response: record within its range",
             )
 
 

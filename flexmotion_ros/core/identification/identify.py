@@ -42,6 +42,11 @@ NYQUIST_FRACTION = 0.8
 MIN_CYCLES = 2.0
 #: A mode whose frequency's relative standard error exceeds this is not identified from the data.
 MAX_OMEGA_RSE = 0.1
+#: A mode must stand out: its gain at least this many standard errors from 0 (a mode fitted to white
+#: noise at the best of ~N/2 frequencies reaches about sqrt(2 ln N), 4 for 10^4 samples).
+MIN_GAIN_T = 6.0
+#: A mode whose damping ratio comes out at least this is not a vibration mode.
+OVERDAMPED_ZETA = 0.9
 #: Most modes tried when the number is selected.
 DEFAULT_MAX_MODES = 4
 #: Refined starts per number of modes.
@@ -103,8 +108,31 @@ def _whiteness(r: np.ndarray) -> float:
     return float(max(abs(float(r[k:] @ r[:-k])) / d for k in range(1, lags + 1)))
 
 
-def _check_modes(data: IdentificationData, omega, zeta, se_omega) -> None:
+def gain_significance(fm: ForwardModel, fit: Fit) -> np.ndarray:
+    """Per mode, the largest ``|gain| / std_error`` over the outputs (how clearly the data show it)."""
+    _, _, _, _, gains, _ = fm.split(fit.theta)
+    _, _, _, _, se, _ = fm.split(fit.std_errors)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(se > 0.0, np.abs(gains) / se, 0.0)
+    return t.max(axis=0) if t.size else np.zeros(0)
+
+
+def _check_modes(data: IdentificationData, omega, zeta, se_omega, significance) -> None:
+    for i, t in enumerate(significance):
+        if not t >= MIN_GAIN_T:
+            raise InputError(
+                "data.input",
+                f"does not show mode {i} (at {omega[i]:.6g} rad/s its gain is {t:.2g} standard errors from 0, "
+                f"need {MIN_GAIN_T:g}): the data show fewer modes; ask for fewer, or excite that band "
+                "(flexmotion excite) and record longer",
+            )
     for i, (w, z, s) in enumerate(zip(omega, zeta, se_omega)):
+        if z >= OVERDAMPED_ZETA:
+            raise InputError(
+                "data.input",
+                f"mode {i} came out critically damped (zeta {z:.3g}): the data show no lightly damped mode there; "
+                "ask for fewer modes",
+            )
         if w >= NYQUIST_FRACTION * data.nyquist:
             raise InputError(
                 "data.time",
@@ -174,7 +202,13 @@ def identify(
     n_params = 2 + 3 * counts[0] + len(outs) * (1 + counts[0])
     data = check_data(time, u, outs, u_max=u_max, parameters=n_params)
     if prior is not None:
-        for i, w in enumerate(prior.omega):
+        for i, (w, z) in enumerate(zip(prior.omega, prior.zeta)):
+            if w * math.sqrt(1.0 - z * z) * data.duration < 2.0 * math.pi * MIN_CYCLES:
+                raise InputError(
+                    "data",
+                    f"too short: model.omega[{i}] = {w:.6g} rad/s completes fewer than {MIN_CYCLES:g} cycles in "
+                    f"{data.duration:.6g} s; record at least {2.0 * math.pi * MIN_CYCLES / w:.6g} s",
+                )
             if w >= NYQUIST_FRACTION * data.nyquist:
                 raise InputError(
                     f"model.omega[{i}]",
@@ -183,6 +217,7 @@ def identify(
                 )
     fits: dict[int, tuple[Fit, np.ndarray]] = {}
     criterion: dict[int, float] = {}
+    significant: dict[int, bool] = {}
     n_total = data.samples * len(outs)
     for n in counts:
         fit, svs = _fit_modes(data, n, prior)
@@ -197,14 +232,20 @@ def identify(
         fits[n] = (fit, svs)
         fm = ForwardModel(data, n)
         criterion[n] = fit.log_likelihood_term(data.samples) + fm.n_params * math.log(n_total)
-    chosen = int(modes) if modes is not None else min(criterion, key=criterion.get)
+        significant[n] = bool(np.all(gain_significance(fm, fit) >= MIN_GAIN_T))
+    if modes is not None:
+        chosen = int(modes)
+    else:  # the smallest BIC among the fits whose every mode stands out (0 modes always does)
+        chosen = min((n for n in criterion if significant[n]), key=criterion.get)
     fit, svs = fits[chosen]
     fm = ForwardModel(data, chosen)
     theta, cov = _normalise(fm, fit)
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     c, omega, zeta, b0, gains, offsets = fm.split(theta)
     _, se_omega, se_zeta, se_b0, se_gains, se_offsets = fm.split(se)
-    _check_modes(data, omega, zeta, se_omega)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        significance = np.where(se_gains > 0.0, np.abs(gains) / se_gains, 0.0).max(axis=0, initial=0.0)
+    _check_modes(data, omega, zeta, se_omega, significance)
     preds = fm.predict(theta)
     k = fm.n_nonlinear
     mode_list = tuple(
