@@ -193,6 +193,8 @@ def text_summary(result: IdentificationResult) -> str:
     else:
         crit = ", ".join(f"{k}: {v:.1f}" for k, v in sel.criterion.items())
         lines.append(f"modes             {result.n_modes} (smallest BIC; {crit})")
-    lines.append(f"solve time        {result.solve_time_s * 1e3:.1f} ms" + ("" if result.converged else " (NOT converged)"))
+    lines.append(
+        f"solve time        {result.solve_time_s * 1e3:.1f} ms" + ("" if result.converged else " (NOT converged)")
+    )
     lines.append(f"note              {result.planning_note}")
     return "\n".join(lines)

@@ -76,7 +76,11 @@ def plot_identification(
     ax_r.set_ylabel(f"residual ({unit})")
     ax_r.legend(loc="upper right")
     dt = result.dt
-    for x, style, label in ((y - y.mean(), "C0", "measured"), (fit - fit.mean(), "C3", "fitted"), (resid, "C2", "residual")):
+    for x, style, label in (
+        (y - y.mean(), "C0", "measured"),
+        (fit - fit.mean(), "C3", "fitted"),
+        (resid, "C2", "residual"),
+    ):
         w, a = amplitude_spectrum(x, dt)
         ax_s.loglog(w, np.maximum(a, 1e-300), color=style, lw=0.8 if label != "fitted" else 1.2, label=label)
     for i, m in enumerate(result.modes):

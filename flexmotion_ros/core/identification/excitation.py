@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from ..errors import InputError, SolverError
 from ..model.modal_model import ModalModel, check_positive
 from ..simulation.error_scale import relative_final_state_error, state_scale
@@ -231,7 +232,9 @@ def design_excitation(
     dw = 2.0 * math.pi / (K * dt)
     lines = dw * np.arange(math.ceil(w_lo / dw), math.floor(w_hi / dw) + 1)
     if lines.size == 0:
-        raise InputError("duration", f"{K * dt:.6g} s is too short for a line in the band: at least {2 * math.pi / w_lo:.6g} s")
+        raise InputError(
+            "duration", f"{K * dt:.6g} s is too short for a line in the band: at least {2 * math.pi / w_lo:.6g} s"
+        )
     t = dt * np.arange(K)
     u = schroeder_multisine(lines, t)
     n_taper = max(1, int(TAPER * K))
@@ -257,7 +260,9 @@ def design_excitation(
         states[-1] - x0, state_scale(ModalResponse(model), np.zeros(model.n_states), scale, u.size * dt)
     )
     if err > FINAL_STATE_RTOL:
-        raise SolverError(f"excitation: final state misses rest at the start by {err:.3g} (relative), above {FINAL_STATE_RTOL}")
+        raise SolverError(
+            f"excitation: final state misses rest at the start by {err:.3g} (relative), above {FINAL_STATE_RTOL}"
+        )
     p_lo, p_hi = rigid_extremes(states, u, model.b0, model.c, dt)
     if p_lo < lo_lim or p_hi > hi_lim:
         raise SolverError(f"excitation: reaches [{p_lo}, {p_hi}] outside the position limits [{lo_lim}, {hi_lim}]")

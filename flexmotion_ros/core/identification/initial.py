@@ -124,7 +124,9 @@ def spectral_start(data: IdentificationData, n_modes: int) -> Start | None:
         spectrum = np.zeros(freqs.size)
         for y, p in zip(fm.y, fm.predict(theta)):
             r = y - p
-            spectrum += np.abs(np.fft.rfft(window * (r - r.mean()) / max(float(np.std(r)), 1e-300), SPECTRAL_PADDING * n))
+            spectrum += np.abs(
+                np.fft.rfft(window * (r - r.mean()) / max(float(np.std(r)), 1e-300), SPECTRAL_PADDING * n)
+            )
         peak = (spectrum[1:-1] > spectrum[:-2]) & (spectrum[1:-1] >= spectrum[2:])
         idx = np.flatnonzero(peak) + 1
         idx = idx[(freqs[idx] >= lo) & (freqs[idx] <= hi)]

@@ -145,17 +145,22 @@ def refine(fm: ForwardModel, theta0: np.ndarray, sigma0: np.ndarray | None = Non
     for _ in range(REWEIGHT_ROUNDS if m > 1 else 1):
         w = 1.0 / sigma
 
-        def fun(th: np.ndarray) -> np.ndarray:
+        def fun(th: np.ndarray, w: np.ndarray = w) -> np.ndarray:
             preds, _ = evaluate(th)
             return np.concatenate([(fm.y[j] - preds[j]) * w[j] for j in range(m)])
 
-        def jac(th: np.ndarray) -> np.ndarray:
+        def jac(th: np.ndarray, w: np.ndarray = w) -> np.ndarray:
             _, jacs = evaluate(th)
             return np.vstack([-jacs[j] * w[j] for j in range(m)])
 
         with np.errstate(over="ignore", invalid="ignore"):
             sol = least_squares(
-                fun, theta, jac=jac, method="trf", bounds=bounds, x_scale="jac",
+                fun,
+                theta,
+                jac=jac,
+                method="trf",
+                bounds=bounds,
+                x_scale="jac",
                 xtol=LM_TOL,
                 ftol=LM_TOL,
                 gtol=LM_TOL,

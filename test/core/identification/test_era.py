@@ -63,7 +63,9 @@ def test_era_equals_control_eigensys_realization():
     # same transfer function: same Markov parameters from both realizations
     for k in range(1, 10):
         ours = float((C1 @ np.linalg.matrix_power(A1, k - 1) @ B1)[0, 0])
-        theirs = float((np.asarray(sys2.C) @ np.linalg.matrix_power(np.asarray(sys2.A), k - 1) @ np.asarray(sys2.B))[0, 0])
+        theirs = float(
+            (np.asarray(sys2.C) @ np.linalg.matrix_power(np.asarray(sys2.A), k - 1) @ np.asarray(sys2.B))[0, 0]
+        )
         assert ours == pytest.approx(theirs, rel=1e-8, abs=1e-12)
     # and the poles are the system's
     assert np.allclose(np.sort_complex(np.linalg.eigvals(A1)), np.sort_complex(np.linalg.eigvals(A)), atol=1e-9)

@@ -39,9 +39,7 @@ def test_too_short(run):
 def test_too_short_for_the_mode(run):
     """300 samples (6 s) hold less than two periods (8.9 s) of the expected 1.41 rad/s mode."""
     t, u, y, model = run
-    refused(
-        "data", "too short", "cycles", time=t[:300], u=u[:300], outputs=SensorOutput(samples=y[:300]), prior=model
-    )
+    refused("data", "too short", "cycles", time=t[:300], u=u[:300], outputs=SensorOutput(samples=y[:300]), prior=model)
     # without a prior the fit finds nothing it can stand behind, and says so
     with pytest.raises(InputError):
         identify(t[:300], u[:300], SensorOutput(samples=y[:300]), modes=1)
