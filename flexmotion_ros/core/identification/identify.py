@@ -10,9 +10,13 @@
 4. The number of modes, unless given: ``N = 0 .. max_modes`` are all fitted
    and the smallest Bayesian information criterion
    ``sum_j N log(RSS_j / N) + P log(M N)`` wins (``P`` parameters, ``M``
-   outputs of ``N`` samples).  A spurious mode lowers the residual by about
-   one noise variance per parameter, far less than its ``log(M N)`` penalty;
-   the Hankel singular values of the winning realization are reported beside it.
+   outputs of ``N`` samples), among the fits whose every mode stands out
+   (gain at least :data:`MIN_GAIN_T` standard errors from 0).  A spurious
+   mode lowers the residual by about one noise variance per parameter, far
+   less than its ``log(M N)`` penalty.  The search stops early at the first
+   count (at least one) whose modes all stand out and whose residuals are as
+   white as noise: nothing is left for another mode to explain.  The Hankel
+   singular values of the winning realization are reported beside it.
 5. Refuse what the data cannot support: a mode at or above
    :data:`NYQUIST_FRACTION` of the Nyquist frequency (it may be aliased; a
    prior model's mode there is refused before fitting), a mode that does not
@@ -47,6 +51,8 @@ MAX_OMEGA_RSE = 0.1
 MIN_GAIN_T = 6.0
 #: A mode whose damping ratio comes out at least this is not a vibration mode.
 OVERDAMPED_ZETA = 0.9
+#: A damping ratio below minus this is a growing mode, not noise around an undamped one.
+UNSTABLE_ZETA = 0.05
 #: Most modes tried when the number is selected.
 DEFAULT_MAX_MODES = 4
 #: Refined starts per number of modes.
@@ -94,7 +100,7 @@ def _fit_modes(data: IdentificationData, n_modes: int, prior: ModalModel | None)
         fit = refine(fm, theta0)
         if best is None or fit.log_likelihood_term(data.samples) < best.log_likelihood_term(data.samples):
             best = fit
-        if fit.success and all(_whiteness(r) <= WHITE_ENOUGH / math.sqrt(r.size) for r in fit.residuals):
+        if fit.success and _white(fit):
             break  # residuals as white as noise: nothing left for another start to explain
     return best, svs
 
@@ -117,6 +123,11 @@ def gain_significance(fm: ForwardModel, fit: Fit) -> np.ndarray:
     return t.max(axis=0) if t.size else np.zeros(0)
 
 
+def _white(fit: Fit) -> bool:
+    """Every output's residual autocorrelation below :data:`WHITE_ENOUGH` / sqrt(N) at lags 1-20."""
+    return all(_whiteness(r) <= WHITE_ENOUGH / math.sqrt(r.size) for r in fit.residuals)
+
+
 def _check_modes(data: IdentificationData, omega, zeta, se_omega, significance) -> None:
     for i, t in enumerate(significance):
         if not t >= MIN_GAIN_T:
@@ -127,6 +138,12 @@ def _check_modes(data: IdentificationData, omega, zeta, se_omega, significance) 
                 "(flexmotion excite) and record longer",
             )
     for i, (w, z, s) in enumerate(zip(omega, zeta, se_omega)):
+        if z <= -UNSTABLE_ZETA:
+            raise InputError(
+                "data.output",
+                f"mode {i} came out growing (zeta {z:.3g} < 0): the record shows an unstable oscillation or "
+                "dynamics the model lacks (a delay, friction); check the sensor and the input's timing",
+            )
         if z >= OVERDAMPED_ZETA:
             raise InputError(
                 "data.input",
@@ -218,6 +235,7 @@ def identify(
     fits: dict[int, tuple[Fit, np.ndarray]] = {}
     criterion: dict[int, float] = {}
     significant: dict[int, bool] = {}
+    stopped = ""
     n_total = data.samples * len(outs)
     for n in counts:
         fit, svs = _fit_modes(data, n, prior)
@@ -233,6 +251,10 @@ def identify(
         fm = ForwardModel(data, n)
         criterion[n] = fit.log_likelihood_term(data.samples) + fm.n_params * math.log(n_total)
         significant[n] = bool(np.all(gain_significance(fm, fit) >= MIN_GAIN_T))
+        if modes is None and significant[n] and _white(fit) and n >= 1:
+            # nothing left for another mode to explain: more would only pay the criterion's penalty
+            stopped = f"stopped at {n}: residual white"
+            break
     if modes is not None:
         chosen = int(modes)
     else:  # the smallest BIC among the fits whose every mode stands out (0 modes always does)
@@ -292,6 +314,7 @@ def identify(
             method="given" if modes is not None else "bic",
             criterion=criterion,
             hankel_singular_values=tuple(float(x) for x in svs),
+            note=stopped,
         ),
         converged=fit.success,
     )

@@ -155,17 +155,21 @@ class ModeSelection:
     hankel_singular_values : tuple of float
         Normalised singular values of the winning realization's Hankel matrix
         (a drop after ``rigid + 2 N`` of them supports ``N`` modes).
+    note : str
+        Why the search stopped before ``max_modes``, if it did.
     """
 
     method: str
     criterion: dict = field(default_factory=dict)
     hankel_singular_values: tuple[float, ...] = ()
+    note: str = ""
 
     def to_dict(self) -> dict[str, object]:
         return {
             "method": self.method,
             "criterion": {str(k): v for k, v in self.criterion.items()},
             "hankel_singular_values": list(self.hankel_singular_values[:12]),
+            "note": self.note,
         }
 
 
