@@ -88,21 +88,37 @@ def _normalise(fm: ForwardModel, fit: Fit) -> tuple[np.ndarray, np.ndarray]:
     return theta[perm], cov[np.ix_(perm, perm)]
 
 
-def _fit_modes(data: IdentificationData, n_modes: int, prior: ModalModel | None) -> tuple[Fit | None, np.ndarray]:
+def _describe(start: Start) -> str:
+    if not start.omega:
+        return "the rigid body alone (c scanned)"
+    if start.block == PRIOR_BLOCK:
+        return "the prior model"
+    if start.block == 0:
+        return "residual spectra"
+    return f"ERA (blocks of {start.block} samples, order {start.order})"
+
+
+#: ``Start.block`` of the prior model's proposal (0 is the spectral one, >= 1 a realization's block size).
+PRIOR_BLOCK = -1
+
+
+def _fit_modes(data: IdentificationData, n_modes: int, prior: ModalModel | None) -> tuple[Fit | None, np.ndarray, str]:
+    """Best refined fit of ``n_modes`` modes, the Hankel singular values, and which first estimate led to it."""
     extra: tuple[Start, ...] = ()
     if prior is not None and prior.n_modes == n_modes and n_modes > 0:
-        extra = (Start(omega=tuple(prior.omega), zeta=tuple(prior.zeta), c=prior.c),)
+        extra = (Start(omega=tuple(prior.omega), zeta=tuple(prior.zeta), c=prior.c, block=PRIOR_BLOCK),)
     starts, svs = initial_estimates(data, n_modes, keep=STARTS, extra=extra)
     fm = ForwardModel(data, n_modes)
     best: Fit | None = None
+    origin = ""
     for st in starts:
         theta0, _ = fm.linear_fit(st.c, st.omega, st.zeta)
         fit = refine(fm, theta0)
         if best is None or fit.log_likelihood_term(data.samples) < best.log_likelihood_term(data.samples):
-            best = fit
+            best, origin = fit, _describe(st)
         if fit.success and _white(fit):
             break  # residuals as white as noise: nothing left for another start to explain
-    return best, svs
+    return best, svs, origin
 
 
 def _whiteness(r: np.ndarray) -> float:
@@ -232,13 +248,13 @@ def identify(
                     f"{w:.6g} rad/s is at or above {NYQUIST_FRACTION} of the Nyquist frequency pi/dt = "
                     f"{data.nyquist:.6g} rad/s of data.time: it would alias; sample faster",
                 )
-    fits: dict[int, tuple[Fit, np.ndarray]] = {}
+    fits: dict[int, tuple[Fit, np.ndarray, str]] = {}
     criterion: dict[int, float] = {}
     significant: dict[int, bool] = {}
     stopped = ""
     n_total = data.samples * len(outs)
     for n in counts:
-        fit, svs = _fit_modes(data, n, prior)
+        fit, svs, origin = _fit_modes(data, n, prior)
         if fit is None:
             if modes is not None:
                 raise InputError(
@@ -247,7 +263,7 @@ def identify(
                     "ask for fewer, record longer, or excite more",
                 )
             continue
-        fits[n] = (fit, svs)
+        fits[n] = (fit, svs, origin)
         fm = ForwardModel(data, n)
         criterion[n] = fit.log_likelihood_term(data.samples) + fm.n_params * math.log(n_total)
         significant[n] = bool(np.all(gain_significance(fm, fit) >= MIN_GAIN_T))
@@ -259,7 +275,7 @@ def identify(
         chosen = int(modes)
     else:  # the smallest BIC among the fits whose every mode stands out (0 modes always does)
         chosen = min((n for n in criterion if significant[n]), key=criterion.get)
-    fit, svs = fits[chosen]
+    fit, svs, origin = fits[chosen]
     fm = ForwardModel(data, chosen)
     theta, cov = _normalise(fm, fit)
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
@@ -315,6 +331,7 @@ def identify(
             criterion=criterion,
             hankel_singular_values=tuple(float(x) for x in svs),
             note=stopped,
+            first_estimate=origin,
         ),
         converged=fit.success,
     )

@@ -22,7 +22,7 @@ a realization.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -186,7 +186,8 @@ def initial_estimates(
     keep : int
         How many distinct proposals to return.
     extra : tuple of Start
-        Proposals from elsewhere (a prior model), ranked with the rest.
+        Proposals from elsewhere (a prior model's frequencies and damping),
+        ranked with the rest; their ``c`` is replaced by the data's first estimate.
 
     Returns
     -------
@@ -203,7 +204,7 @@ def initial_estimates(
         return [Start(omega=(), zeta=(), c=c0, rss=float(rss.sum()))], np.zeros(0)
     Y = np.column_stack([o.samples for o in data.outputs])
     nr = rigid_states(data)
-    proposals: list[Start] = list(extra)
+    proposals: list[Start] = [replace(st, c=c0) for st in extra]  # the data's c beats a belief
     spectral = spectral_start(data, n_modes, c0)
     if spectral is not None:
         proposals.append(spectral)

@@ -157,12 +157,16 @@ class ModeSelection:
         (a drop after ``rigid + 2 N`` of them supports ``N`` modes).
     note : str
         Why the search stopped before ``max_modes``, if it did.
+    first_estimate : str
+        The proposal the chosen fit was refined from: an ERA realization (its
+        block size and order), the residual spectra, or the prior model.
     """
 
     method: str
     criterion: dict = field(default_factory=dict)
     hankel_singular_values: tuple[float, ...] = ()
     note: str = ""
+    first_estimate: str = ""
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -170,6 +174,7 @@ class ModeSelection:
             "criterion": {str(k): v for k, v in self.criterion.items()},
             "hankel_singular_values": list(self.hankel_singular_values[:12]),
             "note": self.note,
+            "first_estimate": self.first_estimate,
         }
 
 
