@@ -11,6 +11,7 @@ import argparse
 import csv
 import difflib
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -162,7 +163,11 @@ def write_identified(path: str, result: IdentificationResult, config: PlannerCon
 
 
 def _est(e, fmt: str = ".6g") -> str:
+    """``value +- std_error [lo, hi]`` with enough digits that the interval's ends differ."""
     lo, hi = e.interval
+    if math.isfinite(e.std_error) and e.std_error > 0.0 and e.value != 0.0:
+        digits = max(int(fmt[1:-1]), math.ceil(math.log10(abs(e.value) / e.std_error)) + 2)
+        fmt = f".{min(digits, 15)}g"
     return f"{e.value:{fmt}} +- {e.std_error:.2g}  [{lo:{fmt}}, {hi:{fmt}}]"
 
 
@@ -193,6 +198,8 @@ def text_summary(result: IdentificationResult) -> str:
     else:
         crit = ", ".join(f"{k}: {v:.1f}" for k, v in sel.criterion.items())
         lines.append(f"modes             {result.n_modes} (smallest BIC; {crit})")
+    if sel.first_estimate:
+        lines.append(f"first estimate    {sel.first_estimate}, refined by maximum likelihood on the exact ZOH response")
     lines.append(
         f"solve time        {result.solve_time_s * 1e3:.1f} ms" + ("" if result.converged else " (NOT converged)")
     )
