@@ -14,10 +14,10 @@ import os
 import sys
 
 from ..core.errors import FlexmotionError
-from . import compare_cmd, demo_cmd, design_cmd, model_cmd, plan_cmd, shaper_cmd
+from . import compare_cmd, demo_cmd, design_cmd, excite_cmd, identify_cmd, model_cmd, plan_cmd, shaper_cmd
 
 #: Modules that provide sub-commands, in help order.
-COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd)
+COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd, excite_cmd, identify_cmd)
 
 
 class _NegativeNumber:
