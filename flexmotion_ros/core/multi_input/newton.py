@@ -1,0 +1,179 @@
+"""Newton on the switch times of every input, for a fixed switch structure, with structure correction.
+
+Unknowns: each input's switch times (time-to-go) ``tau_ij``, the co-state
+direction ``nu`` and one scalar: the duration ``T`` (minimum time) or the
+peak fraction ``rho`` (lowest peak at a fixed ``T``).  Equations: the final
+state is zero (``n``), input ``i``'s switching function vanishes at each of
+its switches (``L_i``), one normalisation of ``nu``.  Square for any
+structure; all derivatives in closed form.  If the converged co-state's
+switching functions change sign elsewhere, the structure was wrong: their
+zeros become the new structure (:func:`~flexmotion_ros.core.time_optimal.switch_newton.updated_structure`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..time_optimal.switch_newton import updated_structure
+from ..time_optimal.switching import find_roots, root_tolerance, sample_grid
+from ..tolerances import POLISH_TOL
+from .response import MultiResponse
+
+MAX_STRUCTURE_UPDATES = 6
+
+
+@dataclass
+class Extremal:
+    """A converged extremal: per input its switch times (time-to-go) and first sign, ``nu`` (scaled), ``T``, ``rho``."""
+
+    roots: list
+    sign0: list
+    nuh: np.ndarray
+    T: float
+    rho: float
+    residual: float
+
+
+def _signs(sign0: float, L: int) -> np.ndarray:
+    return sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+
+
+def refine(resp: MultiResponse, x0, u_max, s, roots, sign0, nuh, T, rho, free_time: bool, max_iter: int = 40):
+    """Newton on ``(tau, nu, T or rho)``; returns ``(ok, roots, nuh, T, rho, residual)``."""
+    m, n = resp.m, resp.n
+    u_max = np.asarray(u_max, float)
+    L = [r.size for r in roots]
+    inp = np.concatenate([np.full(Li, i) for i, Li in enumerate(L)] + [np.empty(0, int)]).astype(int)
+    Lt = inp.size
+    signs = [_signs(sign0[i], L[i]) for i in range(m)]
+    jumpsign = np.concatenate([2.0 * signs[i][:-1] for i in range(m)] + [np.empty(0)])  # 2 s_{i,j-1}
+    last = np.array([signs[i][-1] for i in range(m)])
+    nuh = nuh / np.linalg.norm(nuh)
+    anchor = nuh.copy()
+    ar = np.arange(Lt)
+
+    def split(tau_all):
+        out, k = [], 0
+        for Li in L:
+            out.append(tau_all[k : k + Li])
+            k += Li
+        return out
+
+    def residual(tau_all, nuh, T, rho):
+        GT = resp.input_integral(np.array([T]))[0]  # (n, m)
+        eAx = resp.expm_x(T, x0)
+        drive = GT @ (u_max * last)
+        g = np.zeros((0, n))
+        if Lt:
+            Gt = resp.input_integral(tau_all)[ar, :, inp]  # (Lt, n)
+            drive = drive + (u_max[inp] * jumpsign) @ Gt
+            g = resp.expm_B(tau_all)[ar, :, inp] / s
+        F = (eAx + rho * drive) / s
+        S = g @ nuh
+        return np.concatenate([F, S * gscale, [anchor @ nuh - 1.0]]), g, eAx, drive
+
+    tau = np.concatenate(list(roots) + [np.empty(0)])
+    gscale = np.ones(Lt)
+    r, g, eAx, drive = residual(tau, nuh, T, rho)
+    if Lt:
+        gscale = 1.0 / np.maximum(np.linalg.norm(g, axis=1), 1e-300)
+        r, g, eAx, drive = residual(tau, nuh, T, rho)
+    rn = float(np.max(np.abs(r)))
+    for _ in range(max_iter):
+        if rn <= 16.0 * np.finfo(float).eps:
+            break
+        J = np.zeros((n + Lt + 1, Lt + n + 1))
+        if Lt:
+            J[:n, :Lt] = (rho * (u_max[inp] * jumpsign)[:, None] * g).T
+            dS = resp.switching_all(nuh / s, tau, 1)[1][inp, ar]
+            J[n : n + Lt, :Lt] = np.diag(dS * gscale)
+            J[n : n + Lt, Lt : Lt + n] = g * gscale[:, None]
+        if free_time:
+            eB = resp.expm_B(np.array([T]))[0]  # (n, m)
+            J[:n, -1] = (resp.A_x(eAx) + rho * eB @ (u_max * last)) / s
+        else:
+            J[:n, -1] = drive / s
+        J[-1, Lt : Lt + n] = anchor
+        try:
+            step = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:
+            step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        if not np.all(np.isfinite(step)):
+            break
+        if np.max(np.abs(step[:Lt]), initial=0.0) <= 4 * np.finfo(float).eps * T and abs(step[-1]) <= 4 * np.finfo(
+            float
+        ).eps * (T if free_time else rho):
+            break
+        t = 1.0
+        for _ in range(14 if rn > POLISH_TOL else 1):
+            tau_c = tau + t * step[:Lt]
+            nu_c = nuh + t * step[Lt : Lt + n]
+            T_c = T + t * step[-1] if free_time else T
+            rho_c = rho if free_time else rho + t * step[-1]
+            ok = T_c > 0.0 and rho_c > 0.0
+            if ok:
+                for part in split(tau_c):
+                    if part.size and (part[0] <= 0.0 or part[-1] >= T_c or np.any(np.diff(part) <= 0.0)):
+                        ok = False
+                        break
+            if ok:
+                r_c, g_c, eAx_c, drive_c = residual(tau_c, nu_c, T_c, rho_c)
+                rn_c = float(np.max(np.abs(r_c)))
+                if rn_c < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        tau, nuh, T, rho, r, g, eAx, drive, rn = tau_c, nu_c, T_c, rho_c, r_c, g_c, eAx_c, drive_c, rn_c
+    return rn <= POLISH_TOL, split(tau), nuh, T, rho, rn
+
+
+def structure(resp: MultiResponse, nu: np.ndarray, T: float):
+    """Per input: sign changes of ``S_i`` on ``(0, T)`` (time-to-go) and its first sign."""
+    grid = sample_grid(resp, T)
+    roots, sign0 = [], []
+    for i in range(resp.m):
+        r, s0 = find_roots(resp.for_input(i), nu, T, grid)
+        roots.append(r)
+        sign0.append(float(s0))
+    return roots, sign0
+
+
+def structure_newton(
+    resp: MultiResponse, x0, u_max, s, nuh, T, rho: float, free_time: bool, roots=None, sign0=None
+) -> Extremal | None:
+    """Switch-time Newton from the structure of ``nuh`` at ``T``, with structure updates; None if it fails."""
+    if roots is None:
+        roots, sign0 = structure(resp, nuh / s, T)
+    for _ in range(MAX_STRUCTURE_UPDATES):
+        ok, roots_r, nuh_r, T_r, rho_r, res = refine(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time)
+        if not ok:
+            return None
+        nu = nuh_r / s
+        # nu and -nu vanish at the same switches: take the one whose signs match
+        iso_roots, iso_sign0 = structure(resp, nu, T_r)
+        agree = sum(1 for i in range(resp.m) if iso_sign0[i] == sign0[i])
+        if agree * 2 < resp.m:
+            nuh_r = -nuh_r
+            nu = -nu
+            iso_sign0 = [-v for v in iso_sign0]
+        same = True
+        for i in range(resp.m):
+            tol = root_tolerance(resp.for_input(i), nu, T_r, roots_r[i]) if roots_r[i].size else np.empty(0)
+            if not (
+                iso_roots[i].size == roots_r[i].size
+                and iso_sign0[i] == sign0[i]
+                and np.all(np.abs(iso_roots[i] - roots_r[i]) <= tol)
+            ):
+                same = False
+        if same:
+            return Extremal(roots_r, list(sign0), nuh_r, T_r, rho_r, res)
+        new_roots, new_sign0 = [], []
+        for i in range(resp.m):
+            r_i, s_i = updated_structure(roots_r[i], sign0[i], iso_roots[i], iso_sign0[i])
+            new_roots.append(np.asarray(r_i, float))
+            new_sign0.append(float(s_i))
+        roots, sign0, nuh, T, rho = new_roots, new_sign0, nuh_r, T_r, rho_r
+    return None

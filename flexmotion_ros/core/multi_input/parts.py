@@ -1,0 +1,173 @@
+"""Solving one decoupled part of a multi-input move: minimum time, or lowest peak at a fixed time.
+
+A part (:func:`~flexmotion_ros.core.multi_input.model.decoupled_parts`) is a
+set of inputs with the rigid bodies and modes they reach.  Its minimum time
+comes from the convex dual of :mod:`.dual` (smoothed warm start, bracketed
+Newton on ``T``), then Newton on every input's switch times
+(:mod:`.newton`).  The lowest peak that arrives exactly at a given ``T`` is
+the same problem with the peak fraction ``rho`` unknown instead of ``T``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SolverError
+from ..model.modal_model import ModalModel
+from ..time_optimal.rigid_body import rigid_profile
+from ..tolerances import AT_REST
+from .dual import SMOOTHING, inner_smooth, multi_state_scale, smoothed_time
+from .exact import system_of
+from .newton import Extremal, structure_newton
+from .problem import MultiMoveProblem
+from .response import MultiResponse
+
+
+@dataclass
+class PartSolution:
+    """One part's extremal (forward time).
+
+    Attributes
+    ----------
+    inputs, bodies, modes : tuple of int
+        Indices in the whole model.
+    problem : MultiMoveProblem
+        The part's own move.
+    T : float
+        Its duration (s).
+    rho : float
+        Peak fraction: each input at ``rho u_max_i`` (1 for a minimum-time part).
+    nu : ndarray
+        ``-lambda(T)`` (reduced part state), any positive scale.
+    switch_times, levels : list of ndarray
+        Per input of the part.
+    """
+
+    inputs: tuple
+    bodies: tuple
+    modes: tuple
+    problem: MultiMoveProblem
+    T: float
+    rho: float
+    nu: np.ndarray
+    switch_times: list
+    levels: list
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def response(self) -> MultiResponse:
+        return MultiResponse(self.problem)
+
+    def system(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, B)`` of the part's reduced state (full matrices, for the exact checks)."""
+        return system_of(self.problem.model, self.problem.kept)
+
+
+def rigid_lower_bound(problem: MultiMoveProblem) -> float:
+    """A proved lower bound on the part's minimum time (s): each rigid body alone with all inputs pushing it.
+
+    Rigid body ``j`` cannot accelerate faster than ``sum_i |b0[j, i]| u_max_i``;
+    its single-input time-optimal move at that bound (closed form) is a lower bound.
+    """
+    model = problem.model
+    x = problem.x0 - problem.target_state()
+    best = 0.0
+    for j in range(model.k):
+        a = float(np.abs(model.B0[j]) @ problem.u_max)
+        rb = ModalModel(b0=a, c=model.c[j])
+        has = problem.targets[j] is not None
+        xj = np.array([x[2 * j], x[2 * j + 1]]) if has else np.array([x[2 * j + 1]])
+        best = max(best, rigid_profile(rb, 1.0, xj, has).duration)
+    return best
+
+
+def _at_rest(x0: np.ndarray) -> bool:
+    return not np.any(np.abs(x0) > AT_REST)
+
+
+def _forward(ext: Extremal, u_max: np.ndarray, rho: float) -> tuple[list, list]:
+    sw, lv = [], []
+    for i, (r, s0) in enumerate(zip(ext.roots, ext.sign0)):
+        L = r.size
+        signs = s0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+        sw.append(np.clip(np.sort(ext.T - r), 0.0, ext.T))
+        lv.append(rho * u_max[i] * signs[::-1])
+    return sw, lv
+
+
+def zero_part(indices, problem: MultiMoveProblem) -> PartSolution:
+    """A part already at rest: nothing to do."""
+    n = problem.kept.size
+    m = problem.model.m
+    return PartSolution(
+        *indices, problem, 0.0, 0.0, np.zeros(n), [np.empty(0)] * m, [np.zeros(1)] * m, {"at_rest": True}
+    )
+
+
+def solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
+    """Minimum-time extremal of one part (not yet checked: the caller certifies)."""
+    resp = MultiResponse(problem)
+    x0 = problem.shifted_initial()
+    U = problem.u_max
+    if _at_rest(x0):
+        return zero_part(indices, problem)
+    T_low = rigid_lower_bound(problem)
+    w_min = min(problem.model.omega) if problem.model.n_modes else 0.0
+    T_init = T_low + (0.5 * math.pi / w_min if w_min else 0.0)
+    if T_init <= 0.0:
+        T_init = 1.0
+    s = multi_state_scale(resp, x0, U, T_init)
+    T_lb = T_low * (1.0 - 1e-12)
+    nuh, T = smoothed_time(resp, x0, U, s, T_lb, T_init)
+    ext = None
+    tried = 0
+    for levels in ((), (2e-5,), (2e-6,)):
+        if levels:
+            nuh, T = smoothed_time(resp, x0, U, s, T_lb, T, levels=levels, nuh=nuh)
+        nu = nuh / s
+        s = multi_state_scale(resp, x0, U, T)
+        nuh = nu * s
+        tried += 1
+        ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True)
+        if ext is not None:
+            break
+    if ext is None:
+        raise SolverError(
+            f"multi-input time-optimal planner: no extremal converged for inputs "
+            f"{[problem.model.inputs[i] for i in range(problem.model.m)]} (near T = {T:.6g} s); nothing is returned"
+        )
+    sw, lv = _forward(ext, U, 1.0)
+    return PartSolution(
+        *indices, problem, float(ext.T), 1.0, ext.nuh / s, sw, lv, {"T_low": T_low, "warm_starts": tried}
+    )
+
+
+def solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolution:
+    """The extremal with the lowest peak fraction ``rho`` that arrives exactly at ``T`` (s)."""
+    resp = MultiResponse(problem)
+    x0 = problem.shifted_initial()
+    U = problem.u_max
+    if _at_rest(x0):
+        sol = zero_part(indices, problem)
+        sol.T = T
+        return sol
+    s = multi_state_scale(resp, x0, U, T)
+    nuh = None
+    ext = None
+    for eps in (*SMOOTHING, 2e-5, 2e-6):
+        nuh, mval, _, _ = inner_smooth(resp, x0, U, s, T, nuh, eps)
+        if eps < SMOOTHING[-1] or eps == SMOOTHING[-1]:
+            ext = structure_newton(resp, x0, U, s, nuh, T, 1.0 / mval, False)
+            if ext is not None:
+                break
+    if ext is None or ext.rho > 1.0 + 1e-9:
+        raise SolverError(
+            f"multi-input planner: no lowest-peak extremal at T = {T:.6g} s for inputs "
+            f"{list(problem.model.inputs)}; nothing is returned"
+        )
+    rho = min(ext.rho, 1.0)
+    sw, lv = _forward(ext, U, rho)
+    return PartSolution(*indices, problem, float(T), rho, ext.nuh / s, sw, lv, {})
