@@ -71,7 +71,8 @@ def assemble(
         sync=mode,
         method=method,
         solve_time_s=time.perf_counter() - t0,
-        extra={"parts": len(parts)},
+        # the parts' extremals (co-states, peak fractions): the sampled planner starts from them
+        extra={"parts": len(parts), "part_solutions": list(parts), "part_roles": list(roles)},
     )
 
 
