@@ -100,7 +100,12 @@ def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60)
         nuh = nuh / float(nuh @ w)
     Z = null_basis(w)
     S = G @ nuh
-    eps = eps_rel * max(float(W @ np.abs(S)) / (T * float(np.sum(u_max))), 1e-300)
+    # one smoothing width per input, relative to that input's own mean |S_i|: an input whose
+    # switching function is far smaller than the others' (nearly singular) keeps its structure
+    L = st.grid.size
+    mean_i = (np.abs(S) * W).reshape(resp.m, L).sum(axis=1) / (T * np.asarray(u_max, float))
+    mean_i = np.maximum(mean_i, 1e-9 * float(np.max(mean_i)) + 1e-300)
+    eps = np.repeat(eps_rel * mean_i, L)
 
     def value(S):
         return float(W @ (np.sqrt(S * S + eps * eps) - eps))
@@ -133,9 +138,8 @@ def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60)
     nu = nuh / s
     sq = np.sqrt(S * S + eps * eps)
     mu = float(W @ (S * S / sq))
-    L = st.grid.size
     last = np.arange(resp.m) * L + (L - 1)
-    dm = float(np.asarray(u_max, float) @ (sq[last] - eps)) + mu * float(nu @ resp.A_x(st.eAx))
+    dm = float(np.asarray(u_max, float) @ (sq[last] - eps[last])) + mu * float(nu @ resp.A_x(st.eAx))
     return nuh, f, dm, st
 
 

@@ -141,16 +141,53 @@ def structure(resp: MultiResponse, nu: np.ndarray, T: float):
     return roots, sign0
 
 
+def end_candidates(resp: MultiResponse, nu: np.ndarray, T: float, roots, sign0, small: float = 0.02):
+    """Structures with a short extra switch at an end of the move, for inputs whose ``|S_i|`` is small there.
+
+    A nearly singular input (its ``S_i`` tiny against the others) often ends
+    or starts with a blip far shorter than the smoothing can resolve: ``S_i``
+    just touches zero at ``t = 0`` or ``t = T`` in the warm start.
+    """
+    ends = resp.switching_all(nu, np.array([0.0, T]))[0]  # (m, 2): tau = 0 (t = T), tau = T (t = 0)
+    grid = sample_grid(resp, T)
+    peak = np.max(np.abs(resp.switching_all(nu, grid)[0]), axis=1)
+    near_T = [i for i in range(resp.m) if abs(ends[i, 1]) <= small * peak[i]]
+    near_0 = [i for i in range(resp.m) if abs(ends[i, 0]) <= small * peak[i]]
+    out = []
+    for which in ((near_T, ()), ((), near_0), (near_T, near_0)):
+        if not (which[0] or which[1]):
+            continue
+        r_new, s_new = [r.copy() for r in roots], list(sign0)
+        for i in which[0]:  # a switch just after t = 0: tau just below T
+            last = r_new[i][-1] if r_new[i].size else 0.0
+            r_new[i] = np.append(r_new[i], last + 0.999 * (T - last))
+        for i in which[1]:  # a switch just before t = T: tau just above 0, the first sign flips
+            first = r_new[i][0] if r_new[i].size else T
+            r_new[i] = np.insert(r_new[i], 0, 1e-3 * first)
+            s_new[i] = -s_new[i]
+        out.append((r_new, s_new))
+    return out
+
+
 def structure_newton(
     resp: MultiResponse, x0, u_max, s, nuh, T, rho: float, free_time: bool, roots=None, sign0=None
 ) -> Extremal | None:
     """Switch-time Newton from the structure of ``nuh`` at ``T``, with structure updates; None if it fails."""
     if roots is None:
         roots, sign0 = structure(resp, nuh / s, T)
-    for _ in range(MAX_STRUCTURE_UPDATES):
+    queue: list = []
+    ends_tried = False
+    for _ in range(MAX_STRUCTURE_UPDATES + 3):
         ok, roots_r, nuh_r, T_r, rho_r, res = refine(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time)
         if not ok:
-            return None
+            if not ends_tried:  # a blip at an end the warm start cannot resolve
+                ends_tried = True
+                queue = end_candidates(resp, nuh_r / s, T_r, roots_r, sign0)
+            if not queue:
+                return None
+            roots, sign0 = queue.pop(0)
+            nuh, T, rho = nuh_r, T_r, rho_r
+            continue
         nu = nuh_r / s
         # nu and -nu vanish at the same switches: take the one whose signs match
         iso_roots, iso_sign0 = structure(resp, nu, T_r)

@@ -84,6 +84,48 @@ def rigid_lower_bound(problem: MultiMoveProblem) -> float:
     return best
 
 
+def parallel_groups(problem: MultiMoveProblem) -> list[list[tuple[int, float]]]:
+    """Inputs with parallel columns of ``B`` grouped: ``[(j, alpha_j), ...]`` with ``B_j = alpha_j B_rep``.
+
+    Parallel inputs act as one: ``sum_j B_j u_j = B_rep sum_j alpha_j u_j``, with
+    the bound ``sum_j |alpha_j| u_max_j``; their switching functions are
+    proportional, so they switch together.
+    """
+    B = problem.model.B()
+    groups: list[list[tuple[int, float]]] = []
+    for j in range(B.shape[1]):
+        for g in groups:
+            r = B[:, g[0][0]]
+            alpha = float(B[:, j] @ r) / float(r @ r)
+            if np.max(np.abs(B[:, j] - alpha * r)) <= 1e-12 * float(np.max(np.abs(B[:, j]))):
+                g.append((j, alpha))
+                break
+        else:
+            groups.append([(j, 1.0)])
+    return groups
+
+
+def merged_problem(problem: MultiMoveProblem, groups) -> MultiMoveProblem:
+    """The same move with each group of parallel inputs as one input (its representative)."""
+    model = problem.model
+    reps = [g[0][0] for g in groups]
+    sub = model.submodel(reps, range(model.k), range(model.n_modes))
+    bound = [sum(abs(a) * problem.u_max[j] for j, a in g) for g in groups]
+    return MultiMoveProblem(sub, bound, problem.x0, problem.targets)
+
+
+def split_levels(groups, switch_times: list, levels: list, u_max: np.ndarray, m: int) -> tuple[list, list]:
+    """Per-input switch times and levels from the merged solution (``u_j = sgn(alpha_j) u_max_j s(t)``)."""
+    sw_out: list = [None] * m
+    lv_out: list = [None] * m
+    for g, sw, lv in zip(groups, switch_times, levels):
+        U_rep = sum(abs(a) * u_max[j] for j, a in g)
+        for j, a in g:
+            sw_out[j] = sw
+            lv_out[j] = np.asarray(lv, float) * (np.sign(a) * u_max[j] / U_rep)
+    return sw_out, lv_out
+
+
 def _at_rest(x0: np.ndarray) -> bool:
     return not np.any(np.abs(x0) > AT_REST)
 
@@ -107,7 +149,7 @@ def zero_part(indices, problem: MultiMoveProblem) -> PartSolution:
     )
 
 
-def solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
+def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
     """Minimum-time extremal of one part (not yet checked: the caller certifies)."""
     resp = MultiResponse(problem)
     x0 = problem.shifted_initial()
@@ -145,7 +187,7 @@ def solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
     )
 
 
-def solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolution:
+def _solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolution:
     """The extremal with the lowest peak fraction ``rho`` that arrives exactly at ``T`` (s)."""
     resp = MultiResponse(problem)
     x0 = problem.shifted_initial()
@@ -171,3 +213,25 @@ def solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolut
     rho = min(ext.rho, 1.0)
     sw, lv = _forward(ext, U, rho)
     return PartSolution(*indices, problem, float(T), rho, ext.nuh / s, sw, lv, {})
+
+
+def _with_merged_inputs(indices, problem: MultiMoveProblem, solve) -> PartSolution:
+    groups = parallel_groups(problem)
+    if len(groups) == problem.model.m:
+        return solve(problem)
+    sol = solve(merged_problem(problem, groups))
+    sw, lv = split_levels(groups, sol.switch_times, sol.levels, problem.u_max, problem.model.m)
+    sol.switch_times, sol.levels, sol.problem = sw, lv, problem
+    sol.inputs = tuple(indices[0])
+    sol.extra["parallel_groups"] = [[j for j, _ in g] for g in groups]
+    return sol
+
+
+def solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
+    """Minimum-time extremal of one part (not yet checked: the caller certifies); parallel inputs merged."""
+    return _with_merged_inputs(indices, problem, lambda p: _solve_min_time(indices, p))
+
+
+def solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolution:
+    """The extremal with the lowest peak fraction ``rho`` arriving exactly at ``T`` (s); parallel inputs merged."""
+    return _with_merged_inputs(indices, problem, lambda p: _solve_lowest_peak(indices, p, T))
