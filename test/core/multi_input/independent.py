@@ -90,7 +90,7 @@ def support(A, B, nu, T, u_max, grid_points: int = 4000) -> float:
         x = E @ x
     total = 0.0
     for i in range(m):
-        f = lambda t: float(nu @ expm(A * t) @ B[:, i])
+        f = lambda t, i=i: float(nu @ expm(A * t) @ B[:, i])
         cuts = [0.0]
         for k in np.flatnonzero(np.sign(S[1:, i]) * np.sign(S[:-1, i]) < 0):
             cuts.append(brentq(f, grid[k], grid[k + 1], xtol=1e-15 * T))
