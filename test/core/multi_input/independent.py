@@ -113,7 +113,7 @@ def costate_final(problem, profile) -> np.ndarray:
     return -expm(-A.T * profile.duration) @ np.asarray(profile.certificate.costate_initial, float)
 
 
-def lp_costate(problem, T, samples: int = 3000) -> np.ndarray:
+def lp_costate(problem, T, samples: int = 1000) -> np.ndarray:
     """A co-state direction from the zero-order-hold least-peak LP at ``T`` (HiGHS interior point)."""
     A, B, x0 = reduced(problem)
     n, m = B.shape
