@@ -21,7 +21,6 @@ names (``{"model.b0": ...}``), as :mod:`~flexmotion_ros.core.config` reads them.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -29,6 +28,7 @@ import numpy as np
 
 from ..errors import ConfigError, ModelError
 from .model import MultiModel
+from .problem import check_bounds
 
 #: The parameter names this module reads (for the registry of :mod:`flexmotion_ros.core.parameters`).
 PARAMETER_NAMES = (
@@ -130,25 +130,6 @@ def bounds_from_parameters(params: Mapping, model: MultiModel) -> np.ndarray:
     if len(values) != model.m:
         raise ConfigError("u_max", f"needs one bound per input ({model.m}: {list(model.inputs)}), got {len(values)}")
     return check_bounds(values, model.m)
-
-
-def check_bounds(values, m: int, name: str = "u_max") -> np.ndarray:
-    """``m`` finite positive bounds, or :class:`ConfigError` naming ``name[i]``."""
-    vals = _list(values)
-    if len(vals) == 1 and m > 1:
-        vals = vals * m
-    if len(vals) != m:
-        raise ConfigError(name, f"needs {m} values (one per input), got {len(vals)}")
-    out = np.empty(m)
-    for i, v in enumerate(vals):
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{name}[{i}]", f"must be a finite number > 0, got {v!r}") from None
-        if not math.isfinite(x) or x <= 0.0:
-            raise ConfigError(f"{name}[{i}]", f"must be finite and > 0, got {x}")
-        out[i] = x
-    return out
 
 
 def check_sync(value) -> str:

@@ -14,9 +14,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import GoalError
+from ..errors import ConfigError, GoalError
 from .model import MultiModel
-from .parse import check_bounds
+
+
+def check_bounds(values, m: int, name: str = "u_max") -> np.ndarray:
+    """``m`` finite positive bounds, or :class:`ConfigError` naming ``name[i]``."""
+    vals = list(np.atleast_1d(np.asarray(values, dtype=object)).ravel()) if values is not None else []
+    if len(vals) == 1 and m > 1:
+        vals = vals * m
+    if len(vals) != m:
+        raise ConfigError(name, f"needs {m} values (one per input), got {len(vals)}")
+    out = np.empty(m)
+    for i, v in enumerate(vals):
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{name}[{i}]", f"must be a finite number > 0, got {v!r}") from None
+        if not math.isfinite(x) or x <= 0.0:
+            raise ConfigError(f"{name}[{i}]", f"must be finite and > 0, got {x}")
+        out[i] = x
+    return out
 
 
 @dataclass(frozen=True)
