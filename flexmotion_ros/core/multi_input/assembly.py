@@ -139,7 +139,8 @@ def certify_parts(problem: MultiMoveProblem, parts: list[PartSolution], roles: l
         spread = max(spread, ck.hamiltonian_spread)
         summary["pontryagin"] = "ok" if ck.passed else "; ".join(ck.reasons)
         if role is PartRole.LOWEST_PEAK:
-            db = duality_bound(resp, A, B, x0, p.problem.u_max, p.nu, p.T)
+            roots = ck.zeros_tau if ck.unproved_cells == 0 else None
+            db = duality_bound(resp, A, B, x0, p.problem.u_max, p.nu, p.T, roots)
             summary["peak_lower_bound"] = float(db.ratio)
             ok = db.unproved == 0 and db.ratio >= p.rho * (1.0 - PEAK_GAP_RTOL)
             if not ok:
@@ -148,7 +149,8 @@ def certify_parts(problem: MultiMoveProblem, parts: list[PartSolution], roles: l
                 summary["pontryagin"] += " (peak proved by the dual bound)"
         else:
             T_lo = p.T * (1.0 - GAP_RTOL)
-            db = duality_bound(resp, A, B, x0, p.problem.u_max, p.nu, T_lo)
+            roots = ck.zeros_tau if ck.unproved_cells == 0 else None
+            db = duality_bound(resp, A, B, x0, p.problem.u_max, p.nu, T_lo, roots)
             proved = db.unproved == 0 and db.margin > 0.0
             summary["lower_bound"] = float(T_lo) if proved else 0.0
             if role is PartRole.CRITICAL:

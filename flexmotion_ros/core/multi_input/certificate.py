@@ -39,6 +39,8 @@ class PontryaginChecks:
     hamiltonian_spread: float
     costate_initial: np.ndarray
     reasons: tuple
+    #: per input, the proved sign changes of ``S_i`` on ``[0, T]`` (time-to-go, s)
+    zeros_tau: tuple = ()
 
     @property
     def passed(self) -> bool:
@@ -72,6 +74,7 @@ def pontryagin_checks(
     sign_ok = True
     sw_res = 0.0
     grid0 = sample_grid(resp, T, density=2.0)
+    zeros = []
     for i in range(m):
         sys_i = resp.for_input(i)
         tau_sw = np.sort(T - np.asarray(switch_times[i], float))
@@ -85,6 +88,7 @@ def pontryagin_checks(
             grid = grid[~near]
         iso = isolate_roots(sys_i, nu, T, grid)
         unproved += iso.unproved
+        zeros.append(iso.roots)
         tol = root_tolerance(sys_i, nu, T, tau_sw, 1e-9)
         matched = np.zeros(tau_sw.size, dtype=bool)
         for z in iso.roots:
@@ -144,4 +148,5 @@ def pontryagin_checks(
         hamiltonian_spread=spread,
         costate_initial=lam0,
         reasons=tuple(reasons),
+        zeros_tau=tuple(zeros),
     )

@@ -37,7 +37,9 @@ from .exact import input_integral
 from .response import MultiResponse
 
 #: Smoothing levels (relative to the bound-weighted mean ``|S|``) of the warm start.
-SMOOTHING = (0.02, 0.002, 2e-4)
+SMOOTHING = (0.02, 0.002)
+#: Finer levels tried, in turn, when the switch-time Newton fails from the first warm start.
+FINER = ((2e-4,), (2e-5,), (2e-6,))
 
 
 def multi_state_scale(resp: MultiResponse, x0: np.ndarray, u_max: np.ndarray, T: float) -> np.ndarray:
@@ -188,16 +190,32 @@ class DualityBound:
 
 
 def duality_bound(
-    resp: MultiResponse, A: np.ndarray, B: np.ndarray, x0: np.ndarray, u_max: np.ndarray, nu: np.ndarray, T: float
+    resp: MultiResponse,
+    A: np.ndarray,
+    B: np.ndarray,
+    x0: np.ndarray,
+    u_max: np.ndarray,
+    nu: np.ndarray,
+    T: float,
+    proved_roots: list | None = None,
 ) -> DualityBound:
-    """Weak-duality figures of ``nu`` at ``T`` (see :class:`DualityBound`); ``A, B`` the full reduced system."""
+    """Weak-duality figures of ``nu`` at ``T`` (see :class:`DualityBound`); ``A, B`` the full reduced system.
+
+    ``proved_roots``: per input, every sign change of ``S_i`` on ``[0, T']``,
+    ``T' >= T``, isolated with proof (e.g. by the certificate); otherwise
+    they are isolated here.
+    """
     cuts = [0.0, float(T)]
     per_input = []
     unproved = 0
     for i in range(resp.m):
-        iso = isolate_roots(resp.for_input(i), nu, T)
-        unproved += iso.unproved
-        r = iso.roots[(iso.roots > 0.0) & (iso.roots < T)]
+        if proved_roots is not None:
+            roots = np.asarray(proved_roots[i], float)
+        else:
+            iso = isolate_roots(resp.for_input(i), nu, T)
+            unproved += iso.unproved
+            roots = iso.roots
+        r = roots[(roots > 0.0) & (roots < T)]
         per_input.append(r)
         cuts.extend(r.tolist())
     cuts_arr = np.unique(np.asarray(cuts))

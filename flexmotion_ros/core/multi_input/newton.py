@@ -169,25 +169,18 @@ def end_candidates(resp: MultiResponse, nu: np.ndarray, T: float, roots, sign0, 
     return out
 
 
-def structure_newton(
-    resp: MultiResponse, x0, u_max, s, nuh, T, rho: float, free_time: bool, roots=None, sign0=None
-) -> Extremal | None:
-    """Switch-time Newton from the structure of ``nuh`` at ``T``, with structure updates; None if it fails."""
-    if roots is None:
-        roots, sign0 = structure(resp, nuh / s, T)
-    queue: list = []
-    ends_tried = False
-    for _ in range(MAX_STRUCTURE_UPDATES + 3):
+def _corrections(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time):
+    """Newton from one structure, then structure corrections from the converged zeros.
+
+    Returns ``(extremal or None, last nuh, T, rho, roots)``: the last iterate
+    feeds the end candidates when this fails.
+    """
+    last = (nuh, T, rho, roots)
+    for _ in range(MAX_STRUCTURE_UPDATES):
         ok, roots_r, nuh_r, T_r, rho_r, res = refine(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time)
+        last = (nuh_r, T_r, rho_r, roots_r)
         if not ok:
-            if not ends_tried:  # a blip at an end the warm start cannot resolve
-                ends_tried = True
-                queue = end_candidates(resp, nuh_r / s, T_r, roots_r, sign0)
-            if not queue:
-                return None
-            roots, sign0 = queue.pop(0)
-            nuh, T, rho = nuh_r, T_r, rho_r
-            continue
+            return None, last
         nu = nuh_r / s
         # nu and -nu vanish at the same switches: take the one whose signs match
         iso_roots, iso_sign0 = structure(resp, nu, T_r)
@@ -206,11 +199,41 @@ def structure_newton(
             ):
                 same = False
         if same:
-            return Extremal(roots_r, list(sign0), nuh_r, T_r, rho_r, res)
+            return Extremal(roots_r, list(sign0), nuh_r, T_r, rho_r, res), last
         new_roots, new_sign0 = [], []
         for i in range(resp.m):
             r_i, s_i = updated_structure(roots_r[i], sign0[i], iso_roots[i], iso_sign0[i])
             new_roots.append(np.asarray(r_i, float))
             new_sign0.append(float(s_i))
         roots, sign0, nuh, T, rho = new_roots, new_sign0, nuh_r, T_r, rho_r
+    return None, (nuh, T, rho, roots)
+
+
+def structure_newton(
+    resp: MultiResponse, x0, u_max, s, nuh, T, rho: float, free_time: bool, roots=None, sign0=None
+) -> Extremal | None:
+    """Switch-time Newton from the structure of ``nuh`` at ``T``, with structure updates; None if it fails.
+
+    If the structure of the warm start does not lead to an extremal, structures
+    with a short extra switch at an end of the move are tried
+    (:func:`end_candidates`), from the warm start and from the last iterate.
+    """
+    if roots is None:
+        roots, sign0 = structure(resp, nuh / s, T)
+    ext, last = _corrections(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time)
+    if ext is not None:
+        return ext
+    tried = []
+    for start_nuh, start_T, start_rho, start_roots, start_sign0 in (
+        (nuh, T, rho, roots, sign0),
+        (last[0], last[1], last[2], last[3], sign0),
+    ):
+        for cand_roots, cand_sign0 in end_candidates(resp, start_nuh / s, start_T, start_roots, start_sign0):
+            key = (tuple(r.size for r in cand_roots), tuple(cand_sign0))
+            if key in tried:
+                continue
+            tried.append(key)
+            ext, _ = _corrections(resp, x0, u_max, s, cand_roots, cand_sign0, start_nuh, start_T, start_rho, free_time)
+            if ext is not None:
+                return ext
     return None

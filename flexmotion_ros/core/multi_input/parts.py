@@ -19,7 +19,7 @@ from ..errors import SolverError
 from ..model.modal_model import ModalModel
 from ..time_optimal.rigid_body import rigid_profile
 from ..tolerances import AT_REST
-from .dual import SMOOTHING, inner_smooth, multi_state_scale, smoothed_time
+from .dual import FINER, SMOOTHING, inner_smooth, multi_state_scale, smoothed_time
 from .exact import system_of
 from .newton import Extremal, structure_newton
 from .problem import MultiMoveProblem
@@ -166,7 +166,7 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
     nuh, T = smoothed_time(resp, x0, U, s, T_lb, T_init)
     ext = None
     tried = 0
-    for levels in ((), (2e-5,), (2e-6,)):
+    for levels in ((), *FINER):
         if levels:
             nuh, T = smoothed_time(resp, x0, U, s, T_lb, T, levels=levels, nuh=nuh)
         nu = nuh / s
@@ -199,9 +199,9 @@ def _solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolu
     s = multi_state_scale(resp, x0, U, T)
     nuh = None
     ext = None
-    for eps in (*SMOOTHING, 2e-5, 2e-6):
+    for eps in (*SMOOTHING, *(f[0] for f in FINER)):
         nuh, mval, _, _ = inner_smooth(resp, x0, U, s, T, nuh, eps)
-        if eps < SMOOTHING[-1] or eps == SMOOTHING[-1]:
+        if eps <= SMOOTHING[-1]:
             ext = structure_newton(resp, x0, U, s, nuh, T, 1.0 / mval, False)
             if ext is not None:
                 break

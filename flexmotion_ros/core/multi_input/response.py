@@ -89,6 +89,8 @@ class MultiResponse:
         self.sig = np.asarray(model.zeta, dtype=float) * self.w
         self.wd = model.omega_d
         self.lam = -self.sig + 1j * self.wd
+        self._coef_key: bytes | None = None
+        self._coef_val: tuple = ()
 
     # -------------------------------------------------------------- matrices
     def A(self) -> np.ndarray:
@@ -191,6 +193,9 @@ class MultiResponse:
         + rv[j, i] e^{c_j tau} + sum_l Re(alpha[l, i] e^{lambda_l tau})``.
         """
         nu = np.asarray(nu, dtype=float)
+        key = nu.tobytes()
+        if key == self._coef_key:  # root isolation evaluates one co-state many times
+            return self._coef_val
         npos = np.where(self.has_pos, nu[np.maximum(self.p_idx, 0)], 0.0)
         rp = npos[:, None] * self.B0
         rv = nu[self.v_idx][:, None] * self.B0
@@ -198,6 +203,7 @@ class MultiResponse:
         alpha = (
             (nqd - 1j * (nq - self.sig * nqd) / self.wd)[:, None] * self.Bm if self.w.size else np.zeros((0, self.m))
         )
+        self._coef_key, self._coef_val = key, (rp, rv, alpha)
         return rp, rv, alpha
 
     def switching_all(self, nu: np.ndarray, tau, order: int = 0) -> np.ndarray:
