@@ -150,9 +150,11 @@ def smoothed_time(resp, x0, u_max, s, T_low: float, T_init: float, levels=SMOOTH
     T = max(T_init, T_low, 1e-300)
     for eps in levels:
         lo, hi = T_low, math.inf
+        # the smoothing itself moves the root by about eps: solving m(T) = 1 much closer is wasted work
+        tol = min(1e-2, max(1e-4, eps))
         for _ in range(14):
             nuh, mval, dm, _ = inner_smooth(resp, x0, u_max, s, T, nuh, eps)
-            if mval > 0.0 and abs(math.log(mval)) < 1e-4:
+            if mval > 0.0 and abs(math.log(mval)) < tol:
                 break
             T, lo, hi = bracketed_step(T, mval, dm, lo, hi)
     return nuh, T

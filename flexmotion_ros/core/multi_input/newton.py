@@ -52,7 +52,7 @@ def refine(resp: MultiResponse, x0, u_max, s, roots, sign0, nuh, T, rho, free_ti
     last = np.array([signs[i][-1] for i in range(m)])
     nuh = nuh / np.linalg.norm(nuh)
     anchor = nuh.copy()
-    ar = np.arange(Lt)
+    ar = np.arange(Lt)  # switch index, to pick each switch's own input
 
     def split(tau_all):
         out, k = [], 0
@@ -67,9 +67,9 @@ def refine(resp: MultiResponse, x0, u_max, s, roots, sign0, nuh, T, rho, free_ti
         drive = GT @ (u_max * last)
         g = np.zeros((0, n))
         if Lt:
-            Gt = resp.input_integral(tau_all)[ar, :, inp]  # (Lt, n)
+            Gt = resp.input_integral_cols(tau_all, inp)  # (Lt, n)
             drive = drive + (u_max[inp] * jumpsign) @ Gt
-            g = resp.expm_B(tau_all)[ar, :, inp] / s
+            g = resp.expm_B_cols(tau_all, inp) / s
         F = (eAx + rho * drive) / s
         S = g @ nuh
         return np.concatenate([F, S * gscale, [anchor @ nuh - 1.0]]), g, eAx, drive
@@ -169,6 +169,31 @@ def end_candidates(resp: MultiResponse, nu: np.ndarray, T: float, roots, sign0, 
     return out
 
 
+def repair(roots: list, sign0: list, T: float, rtol: float = 1e-4):
+    """Drop pairs of switches closer than ``rtol T`` and switches within ``rtol T`` of an end; None if none."""
+    out_r, out_s, changed = [], [], False
+    for r, s0 in zip(roots, sign0):
+        r = np.sort(np.asarray(r, float))
+        keep = np.ones(r.size, dtype=bool)
+        j = 0
+        while j < r.size - 1:
+            if keep[j] and r[j + 1] - r[j] < rtol * T:
+                keep[j] = keep[j + 1] = False
+                j += 2
+            else:
+                j += 1
+        s_new = s0
+        if r.size and keep[0] and r[0] < rtol * T:  # the first switch (tau near 0, t near T) leaves: sign flips
+            keep[0] = False
+            s_new = -s0
+        if r.size and keep[-1] and r[-1] > T * (1.0 - rtol):
+            keep[-1] = False
+        changed = changed or not keep.all()
+        out_r.append(r[keep])
+        out_s.append(s_new)
+    return (out_r, out_s) if changed else None
+
+
 def _corrections(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time):
     """Newton from one structure, then structure corrections from the converged zeros.
 
@@ -180,7 +205,14 @@ def _corrections(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time):
         ok, roots_r, nuh_r, T_r, rho_r, res = refine(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time)
         last = (nuh_r, T_r, rho_r, roots_r)
         if not ok:
-            return None, last
+            # a blip that should not be there collapses (two switches merge) or leaves through an end:
+            # drop it and go on from where Newton stopped
+            repaired = repair(roots_r, sign0, T_r)
+            if repaired is None:
+                return None, last
+            roots, sign0 = repaired
+            nuh, T, rho = nuh_r, T_r, rho_r
+            continue
         nu = nuh_r / s
         # nu and -nu vanish at the same switches: take the one whose signs match
         iso_roots, iso_sign0 = structure(resp, nu, T_r)

@@ -27,27 +27,24 @@ from .problem import MultiMoveProblem
 def phi1(z: np.ndarray) -> np.ndarray:
     """``(e^z - 1) / z`` (1 at 0)."""
     z = np.asarray(z, dtype=float)
-    out = np.ones_like(z)
+    if not z.any():  # c = 0: the common case, no division
+        return np.ones_like(z)
     big = np.abs(z) >= 1e-8
-    out[big] = np.expm1(z[big]) / z[big]
-    small = ~big
-    out[small] = 1.0 + 0.5 * z[small] + z[small] ** 2 / 6.0
-    return out
+    safe = np.where(big, z, 1.0)
+    return np.where(big, np.expm1(z) / safe, 1.0 + 0.5 * z + z * z / 6.0)
 
 
 def phi2(z: np.ndarray) -> np.ndarray:
     """``(e^z - 1 - z) / z^2`` (1/2 at 0; Taylor series below ``|z| = 0.1``)."""
     z = np.asarray(z, dtype=float)
-    out = np.empty_like(z)
+    if not z.any():
+        return np.full_like(z, 0.5)
     big = np.abs(z) >= 0.1
-    zb = z[big]
-    out[big] = (np.expm1(zb) - zb) / (zb * zb)
-    zs = z[~big]
-    acc = np.zeros_like(zs)
+    safe = np.where(big, z, 1.0)
+    acc = np.zeros_like(z)
     for k in range(9, -1, -1):
-        acc = acc * zs + 1.0 / math.factorial(k + 2)
-    out[~big] = acc
-    return out
+        acc = acc * z + 1.0 / math.factorial(k + 2)
+    return np.where(big, (np.expm1(safe) - safe) / (safe * safe), acc)
 
 
 class MultiResponse:
@@ -149,6 +146,45 @@ class MultiResponse:
             one_minus = -np.expm1(-self.sig * t) + 2.0 * E * half * half - E * (self.sig / self.wd) * S
             out[:, self.q_idx, :] = (one_minus / self.w**2)[:, :, None] * self.Bm
             out[:, self.qd_idx, :] = (E * S / self.wd)[:, :, None] * self.Bm
+        return out
+
+    def expm_B_cols(self, tau, cols) -> np.ndarray:
+        """``e^{A tau_j} B_{cols[j]}``: one input column per time, shape ``(len(tau), n)``."""
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        cols = np.asarray(cols, dtype=int)
+        out = np.zeros((tau.size, self.n))
+        ct = tau[:, None] * self.c
+        b0 = self.B0[:, cols].T  # (L, k)
+        hp = self.has_pos
+        if hp.any():
+            out[:, self.p_idx[hp]] = (tau[:, None] * phi1(ct))[:, hp] * b0[:, hp]
+        out[:, self.v_idx] = np.exp(ct) * b0
+        if self.w.size:
+            E, C, S = self._trig(tau)
+            bm = self.Bm[:, cols].T  # (L, N)
+            out[:, self.q_idx] = E * S / self.wd * bm
+            out[:, self.qd_idx] = E * (C - self.sig / self.wd * S) * bm
+        return out
+
+    def input_integral_cols(self, tau, cols) -> np.ndarray:
+        """``Gamma_{cols[j]}(tau_j)``: one input column per time, shape ``(len(tau), n)``."""
+        tau = np.atleast_1d(np.asarray(tau, dtype=float))
+        cols = np.asarray(cols, dtype=int)
+        out = np.zeros((tau.size, self.n))
+        ct = tau[:, None] * self.c
+        b0 = self.B0[:, cols].T
+        hp = self.has_pos
+        if hp.any():
+            out[:, self.p_idx[hp]] = ((tau * tau)[:, None] * phi2(ct))[:, hp] * b0[:, hp]
+        out[:, self.v_idx] = tau[:, None] * phi1(ct) * b0
+        if self.w.size:
+            E, C, S = self._trig(tau)
+            t = tau[:, None]
+            half = np.sin(0.5 * self.wd * t)
+            one_minus = -np.expm1(-self.sig * t) + 2.0 * E * half * half - E * (self.sig / self.wd) * S
+            bm = self.Bm[:, cols].T
+            out[:, self.q_idx] = one_minus / self.w**2 * bm
+            out[:, self.qd_idx] = E * S / self.wd * bm
         return out
 
     def expm_x_many(self, tau, x: np.ndarray) -> np.ndarray:
