@@ -14,7 +14,7 @@ from .exact import VectorPiecewise
 from .fixed_time import plan_multi_fixed_time, plan_multi_fixed_time_zoh
 from .fuel import plan_multi_min_fuel_zoh
 from .methods import MULTI_METHODS, REFUSED, MultiPlanResult, check_multi_method, plan_multi_move
-from .model import MultiModel, decoupled_parts
+from .model import MultiModel
 from .parse import (
     PARAMETER_NAMES,
     SYNC_VALUES,
@@ -23,6 +23,7 @@ from .parse import (
     multi_model_from_parameters,
     multi_setup_from_parameters,
 )
+from .parts import decoupled_parts
 from .phase import plan_phase
 from .problem import MultiMoveProblem, multi_rest_to_rest, multi_state_to_rest
 from .results import MultiCertificate, MultiProfile, MultiSampledProfile, PartRole, SyncMode

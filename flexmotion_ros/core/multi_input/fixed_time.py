@@ -18,8 +18,7 @@ import numpy as np
 from ..errors import InputError, SolverError
 from ..time_optimal.fixed_time import check_arrival_time
 from .assembly import assemble
-from .model import decoupled_parts
-from .parts import solve_lowest_peak
+from .parts import decoupled_parts, solve_lowest_peak
 from .problem import MultiMoveProblem
 from .results import MultiProfile, MultiSampledProfile, PartRole, SyncMode
 from .sampled_lp import finish_samples, lowest_peak_samples

@@ -1,6 +1,6 @@
 """Solving one decoupled part of a multi-input move: minimum time, or lowest peak at a fixed time.
 
-A part (:func:`~flexmotion_ros.core.multi_input.model.decoupled_parts`) is a
+A part (:func:`decoupled_parts`) is a
 set of inputs with the rigid bodies and modes they reach.  Its minimum time
 comes from the convex dual of :mod:`.dual` (smoothed warm start, bracketed
 Newton on ``T``), then Newton on every input's switch times
@@ -21,9 +21,41 @@ from ..time_optimal.rigid_body import rigid_profile
 from ..tolerances import AT_REST
 from .dual import FINER, SMOOTHING, inner_smooth, multi_state_scale, smoothed_time
 from .exact import system_of
+from .model import MultiModel
 from .newton import Extremal, structure_newton
 from .problem import MultiMoveProblem
 from .response import MultiResponse
+
+
+def decoupled_parts(model: MultiModel) -> list[tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]]:
+    """The model's decoupled parts: ``(inputs, rigid bodies, modes)`` index tuples.
+
+    Two inputs belong to one part when some rigid body or mode is reached by
+    both (a non-zero gain), transitively.  Parts move independently: each has
+    its own minimum time, and the inputs of a part that does not set the
+    move's time are free within it (``sync``).
+    """
+    B0, Bm = model.B0, model.Bm
+    parent = list(range(model.m))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for row in list(B0) + list(Bm):
+        hit = np.flatnonzero(row)
+        for i in hit[1:]:
+            parent[find(int(i))] = find(int(hit[0]))
+    roots = sorted({find(i) for i in range(model.m)})
+    out = []
+    for r in roots:
+        inputs = tuple(i for i in range(model.m) if find(i) == r)
+        bodies = tuple(j for j in range(model.k) if np.any(B0[j, list(inputs)]))
+        modes = tuple(l for l in range(model.n_modes) if np.any(Bm[l, list(inputs)]))
+        out.append((inputs, bodies, modes))
+    return out
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 Method
 ------
-1. Split the model into decoupled parts (:func:`~.model.decoupled_parts`):
+1. Split the model into decoupled parts (:func:`~.parts.decoupled_parts`):
    inputs sharing a rigid body or a mode, transitively.
 2. Each part's minimum time ``T_c`` from the convex reachable-set dual (support
    function summed over the part's inputs), then Newton on every input's
@@ -37,8 +37,7 @@ import time
 
 from ..errors import ConfigError
 from .assembly import assemble
-from .model import decoupled_parts
-from .parts import solve_lowest_peak, solve_min_time
+from .parts import decoupled_parts, solve_lowest_peak, solve_min_time
 from .phase import plan_phase
 from .problem import MultiMoveProblem
 from .results import MultiProfile, PartRole, SyncMode
