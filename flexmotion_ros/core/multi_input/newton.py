@@ -166,6 +166,42 @@ def end_candidates(resp: MultiResponse, nu: np.ndarray, T: float, roots, sign0, 
             r_new[i] = np.insert(r_new[i], 0, 1e-3 * first)
             s_new[i] = -s_new[i]
         out.append((r_new, s_new))
+    return out + dip_candidates(resp, nu, T, roots, sign0, small)
+
+
+def dip_candidates(resp: MultiResponse, nu: np.ndarray, T: float, roots, sign0, small: float = 0.02, limit: int = 4):
+    """Structures with a short blip (two switches) where some ``|S_i|`` dips close to zero without crossing.
+
+    The smoothing rounds off the near-tangencies of the optimum's switching
+    functions: a blip shorter than the smoothing width shows in the warm
+    start as a dip of ``|S_i|``.  Candidates: every such dip at once, then
+    each alone (deepest first, at most ``limit``).
+    """
+    grid = sample_grid(resp, T, density=2.0)
+    S = resp.switching_all(nu, grid)[0]
+    dips = []
+    for i in range(resp.m):
+        a = np.abs(S[i])
+        peak = float(np.max(a)) or 1.0
+        k = np.flatnonzero((a[1:-1] <= a[:-2]) & (a[1:-1] <= a[2:]) & (a[1:-1] <= small * peak)) + 1
+        same_sign = np.sign(S[i, k - 1]) == np.sign(S[i, k + 1])
+        for kk in k[same_sign]:
+            dips.append((float(a[kk]) / peak, i, float(grid[kk])))
+    dips.sort()
+    dips = dips[:limit]
+    if not dips:
+        return []
+    width = 0.25 * (grid[1] - grid[0])
+
+    def with_blips(chosen):
+        r_new = [np.asarray(r, float).copy() for r in roots]
+        for _, i, t in chosen:
+            r_new[i] = np.sort(np.concatenate([r_new[i], [t - width, t + width]]))
+        return r_new, list(sign0)
+
+    out = [with_blips(dips)]
+    if len(dips) > 1:
+        out += [with_blips([d]) for d in dips]
     return out
 
 
@@ -211,6 +247,15 @@ def _corrections(resp, x0, u_max, s, roots, sign0, nuh, T, rho, free_time):
             if repaired is None:
                 return None, last
             roots, sign0 = repaired
+            nuh, T, rho = nuh_r, T_r, rho_r
+            continue
+        if repair(roots_r, sign0, T_r, rtol=1e-12) is not None:
+            # a blip converged to zero width (inserted narrow, Newton closed it): take the zeros
+            # of the switching functions as they are instead
+            zeros, zsign0 = structure(resp, nuh_r / s, T_r)
+            if all(z.size == r.size for z, r in zip(zeros, roots)) and list(zsign0) == list(sign0):
+                return None, last
+            roots, sign0 = zeros, zsign0
             nuh, T, rho = nuh_r, T_r, rho_r
             continue
         nu = nuh_r / s
