@@ -7,7 +7,9 @@ both ends and the middle (m = 3), rest-to-rest moves whose rigid-body time is
 1 s and 5 s.  In one run, on the same problems:
 
 * the certified continuous plan (``plan_multi_time_optimal``): wall time
-  median / p95 over cold repeats, certified or not, and ``delta``: the
+  median / p95 over cold repeats, CPU time median, and beside it the
+  single-input certified planner on the same chain with one force (a
+  same-run reference for the machine's speed and load); certified or not, and ``delta``: the
   certificate's weak-duality bound proves no input arrives by ``(1 - delta) T*``;
 * the exact 1 kHz plan (continuous plan + ``plan_multi_time_optimal_zoh``):
   samples, median wall time, ``K - 1`` proved infeasible or not;
@@ -45,6 +47,7 @@ import time
 import numpy as np
 from scipy.linalg import expm
 
+from flexmotion_ros.core import chain, plan_time_optimal, rest_to_rest
 from flexmotion_ros.core.multi_input import (
     MultiModel,
     VectorPiecewise,
@@ -59,6 +62,7 @@ from flexmotion_ros.core.multi_input import exact as _exact
 from flexmotion_ros.core.multi_input.shaped import rigid_only
 from flexmotion_ros.core.shaping.shaped_profile import shape
 from flexmotion_ros.core.shaping.shapers import design
+from flexmotion_ros.core.simulation import exact as _single_exact
 from flexmotion_ros.core.simulation.exact import PiecewiseConstant
 
 MODES = (2, 3, 4, 5, 6)
@@ -93,6 +97,17 @@ def timed(fn, repeats: int):
         wall.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     return np.array(wall), np.array(cpu), result
+
+
+def timed_single(fn, repeats: int):
+    """Wall times (s) of cold calls of a single-input planner (its own expm cache cleared)."""
+    out, result = [], None
+    for _ in range(repeats):
+        _single_exact._step_cached.cache_clear()
+        t0 = time.perf_counter()
+        result = fn()
+        out.append(time.perf_counter() - t0)
+    return np.array(out), result
 
 
 # ------------------------------------------------------------------ CasADi
@@ -267,7 +282,7 @@ def residual(problem, u: VectorPiecewise, omega_scale: float = 1.0) -> float:
 # --------------------------------------------------------------------- main
 def latency_table(args) -> None:
     head = (
-        f"{'m':>2} {'N':>2} {'move m':>7} {'T* s':>9} {'cont wall ms':>12} {'p95':>6} {'cpu ms':>6} {'cert':>4} "
+        f"{'m':>2} {'N':>2} {'move m':>7} {'T* s':>9} {'cont wall ms':>12} {'p95':>6} {'cpu ms':>6} {'1-in ms':>7} {'cert':>4} "
         f"{'delta':>6} {'1kHz K':>6} {'1kHz wall':>9} {'cpu ms':>6} {'K-1':>3} "
         f"{'CasADi T s':>10} {'T-T* ms':>8} {'CasADi ms':>9} {'IPOPT':>5}"
     )
@@ -282,6 +297,10 @@ def latency_table(args) -> None:
                 p = multi_rest_to_rest(built.model, built.u_max, [gamma])
                 plan_multi_time_optimal(p)  # warm-up
                 t_cont, c_cont, prof = timed(lambda pr=p: plan_multi_time_optimal(pr), args.repeats)
+                # same-run reference: the single-input certified planner on the same chain, one force
+                one = chain([0.5] * (n + 1), [400.0] * n, [0.4] * n, force_on=0).model
+                p1 = rest_to_rest(one, 10.0, abs(one.b0) * 10.0 * tr**2 / 4.0)
+                t_one, _ = timed_single(lambda pr=p1: plan_time_optimal(pr), args.repeats)
                 reps = max(3, args.repeats // 4)
                 t_zoh, c_zoh, sp = timed(
                     lambda pr=p: plan_multi_time_optimal_zoh(pr, RATE, plan_multi_time_optimal(pr)), reps
@@ -289,7 +308,7 @@ def latency_table(args) -> None:
                 delta = (prof.duration - prof.certificate.lower_bound) / prof.duration
                 row = (
                     f"{m:>2} {n:>2} {gamma:>7.4g} {prof.duration:>9.5f} {1e3 * np.median(t_cont):>12.2f} "
-                    f"{1e3 * np.percentile(t_cont, 95):>6.1f} {1e3 * np.median(c_cont):>6.1f} "
+                    f"{1e3 * np.percentile(t_cont, 95):>6.1f} {1e3 * np.median(c_cont):>6.1f} {1e3 * np.median(t_one):>7.2f} "
                     f"{'yes' if prof.certified else 'NO':>4} {delta:>6.0e} "
                     f"{sp.samples:>6d} {1e3 * np.median(t_zoh):>9.1f} {1e3 * np.median(c_zoh):>6.1f} "
                     f"{'yes' if sp.minimal else 'no':>3} "

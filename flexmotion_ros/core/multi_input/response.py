@@ -247,9 +247,14 @@ class MultiResponse:
         tau = np.atleast_1d(np.asarray(tau, dtype=float))
         rp, rv, alpha = self.coefficients(nu)
         out = np.zeros((order + 1, self.m, tau.size))
-        ect = np.exp(np.outer(self.c, tau))  # (k, L)
-        lin = tau[None, :] * phi1(np.outer(self.c, tau))
-        if self.c.size:
+        if self.c.size and not self.c.any():  # no viscous term: the rigid part is linear in tau
+            slope = rp.sum(axis=0)
+            out[0] += slope[:, None] * tau[None, :] + rv.sum(axis=0)[:, None]
+            if order >= 1:
+                out[1] += slope[:, None]
+        elif self.c.size:
+            ect = np.exp(np.outer(self.c, tau))  # (k, L)
+            lin = tau[None, :] * phi1(np.outer(self.c, tau))
             out[0] += rp.T @ lin + rv.T @ ect
             d1 = rp + self.c[:, None] * rv  # (k, m)
             for d in range(1, order + 1):
