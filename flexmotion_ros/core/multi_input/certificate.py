@@ -61,12 +61,15 @@ def pontryagin_checks(
     switch_times: list,
     levels: list,
     free_time: bool = True,
+    singular=(),
 ) -> PontryaginChecks:
     """Check an extremal: ``nu = -lambda(T)`` (any positive scale), forward switch times and levels per input.
 
     ``free_time``: the duration is free (minimum time): the Hamiltonian must be
     zero for a positive scaling of ``lambda``.  Otherwise (lowest peak at a
-    fixed ``T``) it must only be constant.
+    fixed ``T``) it must only be constant.  ``singular``: inputs whose
+    ``B_i^T lambda`` must vanish identically (they do not set the time; their
+    levels come from a later stage): checked for that instead of (2.34).
     """
     m = resp.m
     extra = 0
@@ -75,7 +78,13 @@ def pontryagin_checks(
     sw_res = 0.0
     grid0 = sample_grid(resp, T, density=2.0)
     zeros = []
+    S_all = resp.switching_all(nu, grid0)[0]
+    top = float(np.max(np.abs(np.delete(S_all, list(singular), axis=0)), initial=0.0)) or 1.0
+    sing_res = max((float(np.max(np.abs(S_all[i]))) / top for i in singular), default=0.0)
     for i in range(m):
+        if i in singular:
+            zeros.append(np.empty(0))
+            continue
         sys_i = resp.for_input(i)
         tau_sw = np.sort(T - np.asarray(switch_times[i], float))
         grid = grid0
@@ -130,6 +139,8 @@ def pontryagin_checks(
     spread = float(np.max(np.abs(kappa - mean))) / parts if (mean < 0 or not free_time) else np.inf
     lam0 = lam[0] * (-1.0 / mean if mean < 0 else 1.0)
     reasons = []
+    if sing_res > SWITCH_RESIDUAL_TOL:
+        reasons.append(f"a singular input's switching function is not identically zero ({sing_res:.2e})")
     if sw_res > SWITCH_RESIDUAL_TOL:
         reasons.append(f"a switching function is not zero at its switch (residual {sw_res:.2e})")
     if extra:

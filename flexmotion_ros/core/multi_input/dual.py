@@ -87,15 +87,27 @@ def stage(resp: MultiResponse, x0: np.ndarray, u_max: np.ndarray, s: np.ndarray,
     return Stage(T, grid, G, W, -eAx / s, eAx)
 
 
-def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60):
+def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60, active=None, V=None, w_vec=None):
     """Smoothed, discretised ``min h_T(nu)`` on ``nu^T w = 1`` by Newton's method.
 
     ``|S|`` is replaced by ``sqrt(S^2 + eps^2) - eps``: smooth and strictly
     convex, so Newton with a line search converges from any start whatever the
     switch structure.  Returns ``(nuh, m, dm/dT, stage)`` (``nuh`` scaled by ``s``).
+
+    ``active`` (bool per input): only those inputs' support functions count;
+    ``V`` (orthonormal columns): ``nu`` restricted to that subspace; ``w_vec``:
+    the (scaled) state to reach instead of ``-e^{A T} x0`` (a part of the
+    move left to some inputs).
     """
     st = stage(resp, x0, u_max, s, T)
-    G, W, w = st.G, st.W, st.w
+    L = st.grid.size
+    G, W = st.G, st.W.copy()
+    w = st.w if w_vec is None else np.asarray(w_vec, float)
+    if active is not None:
+        W = W * np.repeat(np.asarray(active, float), L)
+    if V is not None:
+        G, w = G @ V, V.T @ w
+        nuh = None if nuh is None else V.T @ nuh
     if nuh is None or float(nuh @ w) <= 0.0:
         nuh = w / float(w @ w)
     else:
@@ -104,8 +116,8 @@ def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60)
     S = G @ nuh
     # one smoothing width per input, relative to that input's own mean |S_i|: an input whose
     # switching function is far smaller than the others' (nearly singular) keeps its structure
-    L = st.grid.size
-    mean_i = (np.abs(S) * W).reshape(resp.m, L).sum(axis=1) / (T * np.asarray(u_max, float))
+    U = np.asarray(u_max, float)
+    mean_i = (np.abs(S) * W).reshape(resp.m, L).sum(axis=1) / (T * U)
     mean_i = np.maximum(mean_i, 1e-9 * float(np.max(mean_i)) + 1e-300)
     eps = np.repeat(eps_rel * mean_i, L)
 
@@ -137,11 +149,14 @@ def inner_smooth(resp, x0, u_max, s, T, nuh, eps_rel: float, max_iter: int = 60)
         nuh = nuh + t * (Z @ dy)
         S = S + t * dS
         f = fc
+    if V is not None:
+        nuh = V @ nuh
     nu = nuh / s
     sq = np.sqrt(S * S + eps * eps)
     mu = float(W @ (S * S / sq))
     last = np.arange(resp.m) * L + (L - 1)
-    dm = float(np.asarray(u_max, float) @ (sq[last] - eps[last])) + mu * float(nu @ resp.A_x(st.eAx))
+    act = np.ones(resp.m) if active is None else np.asarray(active, float)
+    dm = float((U * act) @ (sq[last] - eps[last])) + mu * float(nu @ resp.A_x(st.eAx))
     return nuh, f, dm, st
 
 
@@ -200,17 +215,23 @@ def duality_bound(
     nu: np.ndarray,
     T: float,
     proved_roots: list | None = None,
+    inputs=None,
+    w: np.ndarray | None = None,
 ) -> DualityBound:
     """Weak-duality figures of ``nu`` at ``T`` (see :class:`DualityBound`); ``A, B`` the full reduced system.
 
     ``proved_roots``: per input, every sign change of ``S_i`` on ``[0, T']``,
     ``T' >= T``, isolated with proof (e.g. by the certificate); otherwise
-    they are isolated here.
+    they are isolated here.  ``inputs``: only these inputs' support functions
+    (default all); ``w``: the state to reach (unscaled) instead of ``-e^{A T} x0``.
     """
     cuts = [0.0, float(T)]
     per_input = []
     unproved = 0
     for i in range(resp.m):
+        if inputs is not None and i not in inputs:
+            per_input.append(None)
+            continue
         if proved_roots is not None:
             roots = np.asarray(proved_roots[i], float)
         else:
@@ -224,10 +245,12 @@ def duality_bound(
     gam = {float(t): input_integral(A, B, t) for t in cuts_arr}
     support = 0.0
     for i, r in enumerate(per_input):
+        if r is None:
+            continue
         pts = np.concatenate([[0.0], r, [T]])
         acc = 0.0
         for a, b in zip(pts[:-1], pts[1:]):
             acc += abs(float(nu @ (gam[float(b)][:, i] - gam[float(a)][:, i])))
         support += float(u_max[i]) * acc
-    value = float(nu @ (-(expm(A * T) @ x0)))
+    value = float(nu @ (-(expm(A * T) @ x0) if w is None else np.asarray(w, float)))
     return DualityBound(value=value, support=support, unproved=unproved)

@@ -19,12 +19,14 @@ from ..errors import SolverError
 from ..model.modal_model import ModalModel
 from ..time_optimal.rigid_body import rigid_profile
 from ..tolerances import AT_REST
-from .dual import FINER, SMOOTHING, inner_smooth, multi_state_scale, smoothed_time
+from .dual import FINER, multi_state_scale, smoothed_time
 from .exact import system_of
 from .model import MultiModel
-from .newton import Extremal, structure_newton
+from .newton import Extremal, signs_of
 from .problem import MultiMoveProblem
 from .response import MultiResponse
+from .singular import min_time_with_singular, peak_stages, singular_inputs
+from .structure import structure_newton
 
 
 def decoupled_parts(model: MultiModel) -> list[tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]]:
@@ -165,11 +167,23 @@ def _at_rest(x0: np.ndarray) -> bool:
 def _forward(ext: Extremal, u_max: np.ndarray, rho: float) -> tuple[list, list]:
     sw, lv = [], []
     for i, (r, s0) in enumerate(zip(ext.roots, ext.sign0)):
-        L = r.size
-        signs = s0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
         sw.append(np.clip(np.sort(ext.T - r), 0.0, ext.T))
-        lv.append(rho * u_max[i] * signs[::-1])
+        lv.append(rho * u_max[i] * signs_of(s0, r.size)[::-1])
     return sw, lv
+
+
+def _combine(T: float, u_max: np.ndarray, stages: list, s: np.ndarray) -> tuple[list, list, list]:
+    """Per-input forward switch times and levels from stages ``(inputs, roots, sign0, rho, nuh)``; stage summaries."""
+    m = u_max.size
+    sw: list = [np.empty(0)] * m
+    lv: list = [np.zeros(1)] * m
+    info = []
+    for inputs, roots, sign0, rho, nuh in stages:
+        for i in inputs:
+            sw[i] = np.clip(np.sort(T - roots[i]), 0.0, T)
+            lv[i] = rho * u_max[i] * signs_of(sign0[i], roots[i].size)[::-1]
+        info.append({"inputs": [int(i) for i in inputs], "rho": float(rho), "nu": nuh / s})
+    return sw, lv, info
 
 
 def zero_part(indices, problem: MultiMoveProblem) -> PartSolution:
@@ -196,8 +210,8 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
     s = multi_state_scale(resp, x0, U, T_init)
     T_lb = T_low * (1.0 - 1e-12)
     nuh, T = smoothed_time(resp, x0, U, s, T_lb, T_init)
-    ext = None
     tried = 0
+    found = None
     for levels in ((), *FINER):
         if levels:
             nuh, T = smoothed_time(resp, x0, U, s, T_lb, T, levels=levels, nuh=nuh)
@@ -205,18 +219,38 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
         s = multi_state_scale(resp, x0, U, T)
         nuh = nu * s
         tried += 1
+        J = singular_inputs(resp, nu, T, np.ones(resp.m, dtype=bool))
+        if J:  # inputs the optimal co-state does not see: they do not set the time
+            try:
+                out = min_time_with_singular(resp, x0, U, s, nuh, T, J)
+            except SolverError:
+                out = None
+            # only nearly singular (the optimal co-state sees them after all) if the rest needs
+            # more than their bounds: then the plain extremal below
+            if out is not None and all(st.rho <= 1.0 + 1e-9 for st in out[1]):
+                ext, stages = out
+                C = [i for i in range(resp.m) if i not in J]
+                found = (
+                    ext,
+                    [(C, ext.roots, ext.sign0, 1.0, ext.nuh)]
+                    + [(st.inputs, st.roots, st.sign0, min(st.rho, 1.0), st.nuh) for st in stages],
+                )
+                break
         ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True)
         if ext is not None:
+            found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
             break
-    if ext is None:
+    if found is None:
         raise SolverError(
             f"multi-input time-optimal planner: no extremal converged for inputs "
             f"{[problem.model.inputs[i] for i in range(problem.model.m)]} (near T = {T:.6g} s); nothing is returned"
         )
-    sw, lv = _forward(ext, U, 1.0)
-    return PartSolution(
-        *indices, problem, float(ext.T), 1.0, ext.nuh / s, sw, lv, {"T_low": T_low, "warm_starts": tried}
-    )
+    ext, stages = found
+    sw, lv, info = _combine(ext.T, U, stages, s)
+    extra = {"T_low": T_low, "warm_starts": tried}
+    if len(stages) > 1:
+        extra["stages"] = info
+    return PartSolution(*indices, problem, float(ext.T), 1.0, ext.nuh / s, sw, lv, extra)
 
 
 def _solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolution:
@@ -229,22 +263,17 @@ def _solve_lowest_peak(indices, problem: MultiMoveProblem, T: float) -> PartSolu
         sol.T = T
         return sol
     s = multi_state_scale(resp, x0, U, T)
-    nuh = None
-    ext = None
-    for eps in (*SMOOTHING, *(f[0] for f in FINER)):
-        nuh, mval, _, _ = inner_smooth(resp, x0, U, s, T, nuh, eps)
-        if eps <= SMOOTHING[-1]:
-            ext = structure_newton(resp, x0, U, s, nuh, T, 1.0 / mval, False)
-            if ext is not None:
-                break
-    if ext is None or ext.rho > 1.0 + 1e-9:
+    stages = peak_stages(resp, x0, U, s, T, np.ones(resp.m, dtype=bool))
+    rho = stages[0].rho
+    if rho > 1.0 + 1e-9:
         raise SolverError(
-            f"multi-input planner: no lowest-peak extremal at T = {T:.6g} s for inputs "
+            f"multi-input planner: the lowest peak arriving at T = {T:.6g} s is {rho:.6g} > 1 for inputs "
             f"{list(problem.model.inputs)}; nothing is returned"
         )
-    rho = min(ext.rho, 1.0)
-    sw, lv = _forward(ext, U, rho)
-    return PartSolution(*indices, problem, float(T), rho, ext.nuh / s, sw, lv, {})
+    clipped = [(st.inputs, st.roots, st.sign0, min(st.rho, 1.0), st.nuh) for st in stages]
+    sw, lv, info = _combine(T, U, clipped, s)
+    extra = {"stages": info} if len(stages) > 1 else {}
+    return PartSolution(*indices, problem, float(T), min(rho, 1.0), stages[0].nuh / s, sw, lv, extra)
 
 
 def _with_merged_inputs(indices, problem: MultiMoveProblem, solve) -> PartSolution:
@@ -256,6 +285,8 @@ def _with_merged_inputs(indices, problem: MultiMoveProblem, solve) -> PartSoluti
     sol.switch_times, sol.levels, sol.problem = sw, lv, problem
     sol.inputs = tuple(indices[0])
     sol.extra["parallel_groups"] = [[j for j, _ in g] for g in groups]
+    for st in sol.extra.get("stages", []):  # merged input indices -> the original inputs of their groups
+        st["inputs"] = [j for g_idx in st["inputs"] for j, _ in groups[g_idx]]
     return sol
 
 

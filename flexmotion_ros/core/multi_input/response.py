@@ -21,8 +21,6 @@ import math
 
 import numpy as np
 
-from .problem import MultiMoveProblem
-
 
 def phi1(z: np.ndarray) -> np.ndarray:
     """``(e^z - 1) / z`` (1 at 0)."""
@@ -52,11 +50,11 @@ class MultiResponse:
 
     Parameters
     ----------
-    problem : MultiMoveProblem
+    problem : :class:`~flexmotion_ros.core.multi_input.problem.MultiMoveProblem`
         Rigid bodies with a free final position lose their position state.
     """
 
-    def __init__(self, problem: MultiMoveProblem) -> None:
+    def __init__(self, problem) -> None:  # a MultiMoveProblem (not imported: this module is a leaf)
         model = problem.model
         self.model = model
         self.m = model.m

@@ -10,9 +10,10 @@ between brentq-refined zeros), that no admissible input reaches rest by
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from flexmotion_ros.core.errors import ModelError
 from flexmotion_ros.core.multi_input import MultiModel, multi_state_to_rest, plan_multi_time_optimal
 
 from . import independent as ind
@@ -52,6 +53,46 @@ def moves(draw):
 @settings(max_examples=20, suppress_health_check=[HealthCheck.too_slow])
 @given(moves())
 def test_random_coupled_models_are_certified_exact_bounded_and_proved_optimal(problem):
+    prof = plan_multi_time_optimal(problem)
+    assert prof.certified, prof.certificate.message
+    u = prof.input()
+    assert np.all(np.abs(u.levels) <= problem.u_max)
+    xT = ind.final_state(problem, u.breaks, u.levels)
+    assert ind.relative_error(problem, xT, prof.duration, problem.u_max) < 1e-9
+    nu = ind.costate_final(problem, prof)
+    assert ind.proves_infeasible(problem, nu, prof.duration * (1 - 1e-6))
+
+
+@st.composite
+def non_normal_moves(draw):
+    """Coupled models where each gain may be zero: rigid bodies or modes only some inputs reach."""
+    m = draw(st.sampled_from([2, 3]))
+    k = draw(st.sampled_from([1, 2]))
+    N = draw(st.integers(1, 2))
+    b0 = [[draw(st.sampled_from([0.0, 0.3, -0.7, 1.1])) for _ in range(m)] for _ in range(k)]
+    b = [[draw(st.sampled_from([0.0, 0.4, -0.6, 0.9])) for _ in range(m)] for _ in range(N)]
+    omega = [1.3, 4.1][:N]
+    zeta = [0.01, 0.03][:N]
+    try:
+        model = MultiModel(
+            inputs=tuple(f"u{i}" for i in range(m)),
+            rigid_bodies=tuple(f"p{j}" for j in range(k)),
+            b0=tuple(tuple(r) for r in b0),
+            c=(0.0,) * k,
+            omega=tuple(omega),
+            zeta=tuple(zeta),
+            b=tuple(tuple(r) for r in b),
+        )
+    except ModelError:
+        assume(False)
+    u_max = [draw(st.sampled_from([0.8, 2.0, 3.5])) for _ in range(m)]
+    goal = [draw(st.floats(0.3, 3.0)) * draw(st.sampled_from([1.0, -1.0])) for _ in range(k)]
+    return multi_state_to_rest(model, u_max, np.zeros(model.n_states), goal)
+
+
+@settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow])
+@given(non_normal_moves())
+def test_random_non_normal_models_are_certified_exact_and_proved_optimal(problem):
     prof = plan_multi_time_optimal(problem)
     assert prof.certified, prof.certificate.message
     u = prof.input()

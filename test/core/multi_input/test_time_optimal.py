@@ -181,3 +181,29 @@ def test_already_at_rest():
     p = multi_rest_to_rest(g.model, g.u_max, [0.0, 0.0])
     prof = plan_multi_time_optimal(p)
     assert prof.duration == 0.0 and prof.certified
+
+
+def test_coupled_model_with_a_singular_input():
+    """u1 reaches only the second mode: the optimal co-state does not see it (B_1^T lambda = 0); the others
+    set T*, u1 finishes the move inside what it reaches with its lowest peak, proved by its own dual."""
+    M = MultiModel(
+        inputs=("u0", "u1", "u2"),
+        rigid_bodies=("x",),
+        b0=((-0.58, 0.0, -0.29),),
+        c=(0.0,),
+        omega=(0.88, 4.21),
+        zeta=(0.002, 0.026),
+        b=((0.4, 0.0, -0.7), (0.0, -0.94, 0.41)),
+    )
+    assert not M.is_normal
+    p = multi_rest_to_rest(M, [2.6, 4.2, 0.6], [0.3])
+    prof = plan_multi_time_optimal(p)
+    assert prof.certified, prof.certificate.message
+    check_exact_and_bounded(p, prof)
+    stages = prof.certificate.parts[0]["stages"]
+    assert [s["inputs"] for s in stages] == [[1]] and 0.0 < stages[0]["peak_fraction"] < 1.0
+    assert stages[0]["peak_lower_bound"] >= stages[0]["peak_fraction"] * (1 - 1e-8)
+    assert np.max(np.abs(prof.levels[1])) < 4.2 and np.all(np.abs(prof.levels[0]) == 2.6)
+    nu = ind.costate_final(p, prof)
+    assert ind.proves_infeasible(p, nu, prof.duration * (1 - 1e-6))
+    assert not ind.proves_infeasible(p, nu, prof.duration * (1 + 1e-4))
