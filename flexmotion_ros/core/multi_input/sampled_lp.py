@@ -62,7 +62,16 @@ class PartLP:
         return -self.resp.expm_x(K * self.dt, self.x0) / self.s
 
     def signs(self, K: int) -> np.ndarray:
-        S = self.resp.switching_all(self.part.nu, (np.arange(K) + 0.5) * self.dt)[0]  # (m, K)
+        """Signs of the continuous switching functions at the sample midpoints (samples to go), and the values.
+
+        Inputs set by a later stage (singular for the part's co-state) take
+        their signs from that stage's co-state.
+        """
+        tau = (np.arange(K) + 0.5) * self.dt
+        S = self.resp.switching_all(self.part.nu, tau)[0]  # (m, K)
+        for st in self.part.extra.get("stages", [])[1:]:
+            S_st = self.resp.switching_all(st["nu"], tau)[0]
+            S[st["inputs"]] = S_st[st["inputs"]]
         return np.where(S >= 0.0, 1.0, -1.0), S
 
     def solve(self, K: int, nu_hint: np.ndarray | None = None):

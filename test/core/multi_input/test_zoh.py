@@ -64,3 +64,20 @@ def test_single_input_sample_count_equals_the_existing_planner():
     sp = plan_multi_time_optimal_zoh(p, 20.0)
     assert sp.samples == ref.samples and sp.minimal
     check_sequence(p, sp)
+
+
+def test_singular_input_at_a_coarse_rate():
+    M = MultiModel(
+        inputs=("u0", "u1", "u2"),
+        rigid_bodies=("x",),
+        b0=((-0.58, 0.0, -0.29),),
+        c=(0.0,),
+        omega=(0.88, 4.21),
+        zeta=(0.002, 0.026),
+        b=((0.4, 0.0, -0.7), (0.0, -0.94, 0.41)),
+    )
+    p = multi_rest_to_rest(M, [2.6, 4.2, 0.6], [0.3])
+    sp = plan_multi_time_optimal_zoh(p, 20.0)
+    assert sp.minimal
+    check_sequence(p, sp)
+    check_fewest(p, sp)
