@@ -193,6 +193,7 @@ class MultiProfile:
             "certificate": self.certificate.to_dict(),
             "solve_time_s": float(self.solve_time_s),
             "sync": str(self.sync),
+            "normal": bool(self.problem.model.is_normal),
         }
 
 
