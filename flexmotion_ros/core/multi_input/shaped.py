@@ -166,6 +166,8 @@ def sample_profile(problem: MultiMoveProblem, profile: MultiProfile, rate_hz: fl
     """
     t0 = time.perf_counter()
     dt = 1.0 / float(rate_hz)
+    if profile.duration == 0.0:  # nothing to do: no sample
+        return _checked(problem, np.zeros((0, problem.model.m)), dt, profile, t0, np.zeros(problem.kept.size))
     u = profile.input()
     resp = MultiResponse(problem)
     x0 = problem.shifted_initial()
@@ -184,6 +186,9 @@ def sample_profile(problem: MultiMoveProblem, profile: MultiProfile, rate_hz: fl
         end = resp.expm_x(K * dt - profile.duration, (x_end - problem.target_state())[problem.kept])
         w = (end - resp.expm_x(K * dt, x0)) / s
         v = (avg[::-1] / U).T.ravel()  # fractions, input-major, samples to go
+        if G.shape[0] < G.shape[1]:  # fewer commands than states: no exact correction yet
+            K += 1
+            continue
         # slack-weighted least-norm change (samples at the bound stay), else the plain least-norm one
         for fixed in (least_norm_correction(G, w, v, 1.0), correct_exactly(G, w, v, 1.0)):
             if fixed is not None and np.max(np.abs(G.T @ fixed - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):

@@ -170,3 +170,19 @@ def test_summary_json_layout():
     import json
 
     json.dumps(s)
+
+
+@pytest.mark.parametrize(
+    ("method", "options"),
+    [("time_optimal", {}), ("zvd", {}), ("fixed_time", {"arrival_time": 2.0}), ("min_fuel", {"move_time": 2.0})],
+)
+def test_every_method_at_rest_and_with_one_axis_at_rest(method, options):
+    at_rest = multi_rest_to_rest(GANTRY.model, GANTRY.u_max, [0.0, 0.0])
+    r = plan_multi_move(at_rest, method, rate_hz=50.0, options=options)
+    assert np.all(r.sampled.commands == 0.0)
+    assert r.continuous is None or r.continuous.duration in (0.0, 2.0)  # fixed_time: at rest until 2 s
+    one = multi_rest_to_rest(GANTRY.model, GANTRY.u_max, [0.5, 0.0])
+    r = plan_multi_move(one, method, rate_hz=50.0, options=options)
+    xK = ind.final_state(one, r.sampled.dt * np.arange(r.sampled.samples + 1), r.sampled.commands)
+    assert ind.relative_error(one, xK, r.sampled.duration, one.u_max) < 1e-9
+    assert np.max(np.abs(r.sampled.commands[:, 1])) <= 1e-12 * GANTRY.u_max[1]  # the bridge has nothing to do
