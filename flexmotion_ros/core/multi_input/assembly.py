@@ -147,9 +147,10 @@ def certify_parts(problem: MultiMoveProblem, parts: list[PartSolution], roles: l
         )
         for k, st in enumerate(stages[1:], start=1):
             ok, note = _stage_proved(resp, A, B, x0, p, stages[:k], st)
+            note["inputs"] = [problem.model.inputs[p.inputs[i]] for i in st["inputs"]]
             summary.setdefault("stages", []).append(note)
             if not ok:
-                reasons.append(f"inputs {[problem.model.inputs[p.inputs[i]] for i in st['inputs']]}: {note['proof']}")
+                reasons.append(f"inputs {note['inputs']}: {note['proof']}")
         sw_res, extra, unproved = max(sw_res, ck.switch_residual), extra + ck.extra_zeros, unproved + ck.unproved_cells
         sign_ok = sign_ok and ck.sign_consistent
         spread = max(spread, ck.hamiltonian_spread)

@@ -201,7 +201,7 @@ def test_coupled_model_with_a_singular_input():
     assert prof.certified, prof.certificate.message
     check_exact_and_bounded(p, prof)
     stages = prof.certificate.parts[0]["stages"]
-    assert [s["inputs"] for s in stages] == [[1]] and 0.0 < stages[0]["peak_fraction"] < 1.0
+    assert [s["inputs"] for s in stages] == [["u1"]] and 0.0 < stages[0]["peak_fraction"] < 1.0
     assert stages[0]["peak_lower_bound"] >= stages[0]["peak_fraction"] * (1 - 1e-8)
     assert np.max(np.abs(prof.levels[1])) < 4.2 and np.all(np.abs(prof.levels[0]) == 2.6)
     nu = ind.costate_final(p, prof)
