@@ -14,19 +14,25 @@ from .problem import MultiMoveProblem
 class SyncMode(str, Enum):
     """How the inputs that do not set the minimum time ``T*`` move (parameter ``sync``).
 
-    Every mode arrives at rest, exactly, never beyond any ``u_max_i``; the
-    move takes the proved minimum ``T*`` (``time``, ``none``) or the
-    straight-line optimum (``phase``).
+    Whatever the mode: the move ends at rest, exactly (checked by matrix
+    exponentials), and no command exceeds its ``u_max_i``.
+
+    * ``time`` (default): the move takes ``T*``, proved minimal (weak duality).
+      Every decoupled part finishes exactly at ``T*``; a part that could finish
+      sooner moves with the lowest common peak fraction ``rho`` of its inputs
+      (``|u_i| <= rho u_max_i``) that arrives exactly then, proved lowest by
+      its dual.  Inside a part, inputs the optimal co-state does not see
+      (singular) finish the move with their own lowest peak after the others.
+    * ``none``: the move takes ``T*`` too; every part is time-optimal on its
+      own (certified) and then holds 0, so parts arrive at different instants.
+    * ``phase``: the rigid bodies travel the straight line from start to
+      target; the time-optimal move among such moves (certified as a
+      single-input problem), in general slower than ``T*``.  Refused, with the
+      reason, where the dynamics do not allow it (see :mod:`.phase`).
     """
 
-    #: Every decoupled part finishes at ``T*``; a part that could finish sooner
-    #: uses the lowest peak ``rho max|u_i| / u_max_i`` that arrives exactly at
-    #: ``T*`` (a min-max problem, certified by its dual).
     TIME = "time"
-    #: Every decoupled part time-optimal on its own (certified), then holds 0.
     NONE = "none"
-    #: The rigid bodies move on the straight line from start to target (one
-    #: path parameter drives every input); the time-optimal such move.
     PHASE = "phase"
 
     def __str__(self) -> str:
