@@ -15,8 +15,9 @@ ROS parameters cannot nest arrays, so ``b0`` (``k x m``) and ``b``
     sync: time                           # time | none | phase
     fuel_weights: [1.0, 1.0]             # method min_fuel, one per input
 
-``params`` may be nested (``{"model": {"b0": ...}}``) or flat with dotted
-names (``{"model.b0": ...}``), as :mod:`~flexmotion_ros.core.config` reads them.
+``params`` may be nested (``{"model": {"b0": ...}}``), flat with dotted
+names (``{"model.b0": ...}``), as :mod:`~flexmotion_ros.core.config` reads
+them, or a whole parameter file as loaded (``{"/**": {"ros__parameters": ...}}``).
 """
 
 from __future__ import annotations
@@ -55,6 +56,8 @@ def flatten(params: Mapping) -> dict:
     for key, value in params.items():
         if key == "ros__parameters" and isinstance(value, Mapping):
             out.update(flatten(value))
+        elif isinstance(value, Mapping) and "ros__parameters" in value:  # a node-name key such as "/**"
+            out.update(flatten(value["ros__parameters"]))
         elif isinstance(value, Mapping):
             for sub, v in flatten(value).items():
                 out[f"{key}.{sub}"] = v

@@ -173,3 +173,28 @@ def test_chain_with_actuated_masses_and_two_mass():
     with pytest.raises(ModelError) as err:
         multi_chain([1, 1], [10], actuated=(0, 2))
     assert err.value.parameter == "actuated"
+
+
+def test_the_issue_parameter_file_as_yaml():
+    import yaml
+
+    text = """
+/**:
+  ros__parameters:
+    model:
+      inputs: [trolley, bridge]          # m actuated joints
+      rigid_bodies: [x, y]               # k rigid-body coordinates
+      b0: [0.004, 0.0, 0.0, 0.0018]      # k x m, row-major (1/kg)
+      c: [0.0, 0.0]
+      omega: [1.85, 2.48]                # rad/s, any order; repeated values allowed when controllable
+      zeta: [0.0, 0.0]
+      b: [0.0, -0.0006, -0.0025, 0.0]    # N x m, row-major
+    u_max: [300.0, 500.0]                # N, one per input
+"""
+    params = yaml.safe_load(text)
+    from flexmotion_ros.core.multi_input import is_multi_input
+
+    assert is_multi_input(params)
+    setup = multi_setup_from_parameters(params)
+    assert setup.model == multi_model_from_parameters(ISSUE_YAML)
+    assert np.array_equal(setup.u_max, [300.0, 500.0])
