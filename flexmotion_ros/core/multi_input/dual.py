@@ -37,7 +37,7 @@ from .exact import input_integral
 from .response import MultiResponse
 
 #: Smoothing levels (relative to the bound-weighted mean ``|S|``) of the warm start.
-SMOOTHING = (0.02, 0.002)
+SMOOTHING = (0.005,)
 #: Finer levels tried, in turn, when the switch-time Newton fails from the first warm start.
 FINER = ((2e-4,), (2e-5,), (2e-6,))
 
