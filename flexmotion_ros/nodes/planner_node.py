@@ -320,6 +320,7 @@ class PlannerNode(LifecycleNode):
         # the stream.  Freezing the start-up heap leaves only new objects to scan.
         gc.collect()
         gc.freeze()
+        self._froze_gc = True
         m = self._config.model
         self.get_logger().info(
             f"ready: {m.n_modes} mode(s), u_max {self._config.u_max:g}, {rate:g} Hz, method {self._config.method}, "
@@ -350,6 +351,20 @@ class PlannerNode(LifecycleNode):
             self._listener = None
             listener.close()
         super().destroy_node()
+        # Jazzy's LifecycleNode leaves its state machine alive, and it holds the rcl node: the node, and
+        # with the last node of a context its DDS participant, lived on until the garbage collector found
+        # the cycle -- never, once gc.freeze() had frozen it.  41 leaked participants in one test process
+        # put new ones beyond Fast DDS's 32 localhost discovery ports (maxInitialPeersRange): unseen.
+        state_machine = getattr(self, "_state_machine", None)
+        if state_machine is not None:
+            state_machine.destroy_when_not_in_use()
+        self._unfreeze_gc()
+
+    def _unfreeze_gc(self) -> None:
+        """Undo configure's ``gc.freeze()``: what it froze may be collected again (cleanup, destroy)."""
+        if getattr(self, "_froze_gc", False):
+            self._froze_gc = False
+            gc.unfreeze()
 
     # --------------------------------------------------------------- lifecycle
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -484,6 +499,7 @@ class PlannerNode(LifecycleNode):
         for kind, entity in self._configured_entities:
             destroy[kind](entity)
         self._configured_entities = []
+        self._unfreeze_gc()
 
     def _ros_clock_pair(self) -> dict[str, Any]:
         """``clock`` and ``sleep`` of the stream on the node's ROS clock (``use_sim_time``: /clock drives it).
