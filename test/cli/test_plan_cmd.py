@@ -310,6 +310,19 @@ def test_a_typo_in_a_key_is_refused_with_the_closest_name(capsys, tmp_path):
 
 
 @pytest.mark.parametrize(
+    "line, verdict",
+    [
+        ("state: {source: bogus}", "state.source: must be one of ['measured', 'assumed'], got 'bogus'"),
+        ("trajectory: {early_arrival: optimun}", "got 'optimun' (closest: 'optimum')"),
+    ],
+)
+def test_a_node_parameter_outside_its_choices_is_refused_like_the_node_does(capsys, tmp_path, line, verdict):
+    """Old main: `flexmotion plan` planned (exit 0) with state.source: bogus; the node refused it."""
+    path = _with(tmp_path, "u_max: 1.0 ", f"{line}\n    u_max: 1.0 ")
+    assert_refused(capsys, ["plan", "--config", path, "--goal", "1"], verdict)
+
+
+@pytest.mark.parametrize(
     "method, option, closest",
     [
         ("time_optimal_friction", "colomb_force=0.1", "coulomb_force"),
