@@ -9,11 +9,12 @@ import time
 
 import numpy as np
 
-from ..core.config import config_from_parameters, read_parameter_file
+from ..core.config import config_from_parameters
 from ..core.errors import ConfigError, GoalError
 from ..core.methods.table import plan_move
 from ..core.model.boundary import motion_to_rest, rest_to_rest, state_to_rest
 from ..core.model.modal_model import check_positive
+from ..core.parameter_file import read_parameter_file
 from ..core.parameters import check_parameters, parse_parameter_value
 
 

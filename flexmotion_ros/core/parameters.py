@@ -199,7 +199,9 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("frame_id", S, "a frame name", "frame_id of the answered paths"),
     _p("diagnostics_period_s", D, "s, in [0.01, 3600]", "period of /diagnostics"),
     _p("joint_name", S, "a joint name", "the joint this planner moves"),
-    _p("state.source", S, "'measured' or 'assumed'", "start state of a move from idle", choices=("measured", "assumed")),
+    _p(
+        "state.source", S, "'measured' or 'assumed'", "start state of a move from idle", choices=("measured", "assumed")
+    ),
     _p("state.topic", S, "a topic name", "topic of the measured state"),
     _p("state.mode_joint_names", SA, "one joint name per mode", "joints holding the modal coordinates"),
     _p("state.timeout_s", D, "s, in (0, 3600]", "age after which a measured state is stale"),
