@@ -12,10 +12,12 @@ when one is usable.  Refusals never raise: one line in the log, on
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from nav_msgs.srv import GetPlan
+from rclpy.task import Future
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -35,6 +37,7 @@ from ..execution import (
     splice_point,
 )
 from ..execution.measured_state import EarlyArrival, at_rest
+from ..execution.requests import Request, RequestKind
 from . import messages
 
 
@@ -76,7 +79,7 @@ class GoalHandling:
     """The planner node's requests, plans and stops (a mixin of :class:`~.planner_node.PlannerNode`)."""
 
     def _on_goal(self, msg: Float64) -> None:
-        self.request(msg.data, execute=True, source="~/goal")
+        self._submit(RequestKind.GOAL, msg.data, "~/goal")
 
     def _on_joint_trajectory(self, msg: JointTrajectory) -> None:
         try:
@@ -85,18 +88,67 @@ class GoalHandling:
             self._refuse("~/joint_trajectory", str(exc))
             return
         if goal.target is None:
-            self.request(None, execute=True, source="~/joint_trajectory (empty: stop)")
+            self._stop_now("~/joint_trajectory (empty: stop)")
         else:
-            self.request(goal.target, execute=True, source="~/joint_trajectory", arrival_time=goal.arrival_time)
+            self._submit(RequestKind.GOAL, goal.target, "~/joint_trajectory", arrival_time=goal.arrival_time)
 
-    def _on_move(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
-        return self._answer_plan(request, response, execute=True)
+    async def _on_move(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
+        return await self._answer_plan(request, response, execute=True)
 
-    def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
-        return self._answer_plan(request, response, execute=False)
+    async def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
+        return await self._answer_plan(request, response, execute=False)
 
-    def _answer_plan(self, request: GetPlan.Request, response: GetPlan.Response, execute: bool) -> GetPlan.Response:
-        out = self.request(request.goal.pose.position.x, execute=execute, source="~/move" if execute else "~/plan")
+    def _submit(
+        self,
+        kind: RequestKind,
+        target: float,
+        source: str,
+        arrival_time: float | None = None,
+        answer: Callable[[Outcome], None] | None = None,
+    ) -> None:
+        """Hand a goal (newest wins) or a query to the planning thread; the executor is free at once.
+
+        ``answer(outcome)`` is called once, from the planning thread (or at once if refused here).
+        """
+        reply = answer if answer is not None else (lambda out: None)
+        if kind is RequestKind.GOAL and self._lifecycle != "active":
+            reply(self._refuse(source, f"the planner is {self._lifecycle} (lifecycle): activate it to move"))
+            return
+        self._worker.submit(Request(kind=kind, target=target, source=source, arrival_time=arrival_time, answer=reply))
+
+    def _handle(self, req: Request) -> Outcome:
+        """The planning thread's work: one request, planned (and for a goal, installed)."""
+        return self.request(
+            req.target,
+            execute=req.kind is RequestKind.GOAL,
+            source=req.source,
+            arrival_time=req.arrival_time,
+            ticket=req,
+        )
+
+    def _planning_a_goal(self) -> bool:
+        """A goal (not a query, not cancelled) is being planned now: the stop preparer pauses."""
+        req = self._worker.planning
+        return req is not None and req.kind is RequestKind.GOAL and not req.cancelled
+
+    def _not_planned(self, req: Request, reason: str) -> Outcome:
+        """The answer to a request superseded by a newer goal, cancelled by a stop, or refused as busy."""
+        self.get_logger().info(f"{req.source}: not planned: {reason}")
+        return Outcome(False, reason)
+
+    async def _answer_plan(
+        self, request: GetPlan.Request, response: GetPlan.Response, execute: bool
+    ) -> GetPlan.Response:
+        # planned in the planning thread: meanwhile the executor serves ~/stop, goals and the rest
+        done: Future = Future()
+
+        def answer(out: Outcome) -> None:
+            done.set_result(out)
+            self._wake_executor()
+
+        kind = RequestKind.GOAL if execute else RequestKind.QUERY
+        self._submit(kind, request.goal.pose.position.x, "~/move" if execute else "~/plan", answer=answer)
+        out: Outcome = await done
         if not out.ok:
             response.plan = messages.error_path(out.reason, self.get_clock().now().to_msg())
         elif out.segment is None:  # already there: a one-pose path
@@ -108,10 +160,28 @@ class GoalHandling:
             )
         return response
 
-    def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        out = self._ready_stop("~/stop")
+    def _wake_executor(self) -> None:
+        """Wake the executor so that a service waiting for the planning thread answers now."""
+        try:
+            self._wake.trigger()
+        except Exception:  # noqa: BLE001, S110 -- the node is being destroyed: nobody waits any more
+            pass
+
+    def _stop_now(self, source: str) -> Outcome:
+        """A stop: cancel the goals waiting or being planned, then a ready stop, else plan it now.
+
+        Runs in the executor thread at once: it never waits behind a goal's plan
+        (the goal being planned is dropped when its plan finishes).
+        """
+        if self._lifecycle == "active":
+            self._worker.cancel(f"superseded by a stop ({source}) before it started")
+        out = self._ready_stop(source)
         if out is None:  # none usable: plan the stop now (a preemption with the look-ahead)
-            out = self.request(None, execute=True, source="~/stop")
+            out = self.request(None, execute=True, source=source)
+        return out
+
+    def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        out = self._stop_now("~/stop")
         response.success = out.ok
         if not out.ok:
             response.message = out.reason
@@ -124,7 +194,14 @@ class GoalHandling:
             )
         return response
 
-    def request(self, target: float | None, execute: bool, source: str, arrival_time: float | None = None) -> Outcome:
+    def request(
+        self,
+        target: float | None,
+        execute: bool,
+        source: str,
+        arrival_time: float | None = None,
+        ticket: Request | None = None,
+    ) -> Outcome:
         """Plan a move to ``target`` (None: stop) and, if ``execute``, stream it.
 
         ``arrival_time`` (s, from the move's first command): arrive at rest
@@ -132,22 +209,25 @@ class GoalHandling:
         the move starts from the measured state (``state.source``).
 
         Never raises for bad input: a refused request returns ``ok=False`` and
-        the reason, logs it and publishes ERROR on /diagnostics.
+        the reason, logs it and publishes ERROR on /diagnostics.  ``ticket``:
+        the planning thread's request; cancelled meanwhile (a stop), its plan
+        is dropped, never installed.
         """
-        t_req = time.monotonic()
+        t_req = ticket.requested_at if ticket is not None else time.monotonic()
         if execute and self._lifecycle != "active":
             return self._refuse(source, f"the planner is {self._lifecycle} (lifecycle): activate it to move")
-        with self._plan_lock:
-            self._status.set_planning(source)
-            try:
-                out = self._plan_locked(target, execute, source, t_req, arrival_time)
-            except (FlexmotionError, SolverError) as exc:
-                return self._refuse(source, str(exc))
-            except Exception as exc:  # noqa: BLE001 -- keep serving whatever a method raises
-                self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")
-                return self._refuse(source, f"{type(exc).__name__}: {exc}")
-            finally:
-                self._status.set_planning("")
+        self._status.set_planning(source)
+        try:
+            out = self._plan_request(target, execute, source, t_req, arrival_time, ticket)
+        except (FlexmotionError, SolverError) as exc:
+            return self._refuse(source, str(exc))
+        except Exception as exc:  # noqa: BLE001 -- keep serving whatever a method raises
+            self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")
+            return self._refuse(source, f"{type(exc).__name__}: {exc}")
+        finally:
+            self._status.set_planning("")
+        if out is None:  # cancelled while planned
+            return self._not_planned(ticket, ticket.cancelled)
         if out.ok and execute:
             self._status.set_error(None)
             self.publish_diagnostics()
@@ -218,9 +298,16 @@ class GoalHandling:
                 "(trajectory.early_arrival: refuse; 'optimum' arrives as fast as possible instead)",
             ) from None
 
-    def _plan_locked(
-        self, target: float | None, execute: bool, source: str, t_req: float, arrival_time: float | None = None
-    ) -> Outcome:
+    def _plan_request(
+        self,
+        target: float | None,
+        execute: bool,
+        source: str,
+        t_req: float,
+        arrival_time: float | None = None,
+        ticket: Request | None = None,
+    ) -> Outcome | None:
+        """Plan outside the install lock, install under it; None if ``ticket`` was cancelled meanwhile."""
         config = self._config
         model = config.model
         if target is not None:
@@ -253,24 +340,28 @@ class GoalHandling:
             if not execute:
                 k0 = k_next if at is None else at
                 return Outcome(True, "", seg, self._ros_time_of(k0), info)
-            if at is None and seg.samples == 0:
-                self._position = float(x0[0])  # measured there, at rest
-                return Outcome(True, f"already at {self._position:.9g}", None, self._ros_time_of(k_next), info)
-            if at is None or not self.stream.splice(seg, at):
-                # the timeline ran out while planning: valid from rest only if x0 was the rest at its end
-                if at is not None and not ended_at_rest(timeline, at, self.stream.idle):
-                    # overran the look-ahead: plan again from a later sample
-                    self.get_logger().warning(
-                        f"{source}: planning took {plan_time * 1e3:.0f} ms, beyond the {lead} sample look-ahead; replanning"
-                    )
-                    lead = longer_lead(lead)
-                    continue
-                self._move_requested_at = t_req
-                seg.info.from_idle = True
-                self.stream.start_now(seg)
-            self._installed(seg, target, info, source)
-            self._predicted_end = np.array(seg.states[-1], float)
-            return Outcome(True, "", seg, self._ros_time_of(seg.start), info)
+            with self._install_lock:  # held for the splice only: a stop never waits for a plan
+                if ticket is not None and ticket.cancelled:
+                    return None
+                if at is None and seg.samples == 0:
+                    self._position = float(x0[0])  # measured there, at rest
+                    return Outcome(True, f"already at {self._position:.9g}", None, self._ros_time_of(k_next), info)
+                if at is None or not self.stream.splice(seg, at):
+                    # the timeline ran out while planning: valid from rest only if x0 was the rest at its end
+                    if at is not None and not ended_at_rest(timeline, at, self.stream.idle):
+                        # overran the look-ahead: plan again from a later sample
+                        self.get_logger().warning(
+                            f"{source}: planning took {plan_time * 1e3:.0f} ms, beyond the {lead} sample "
+                            "look-ahead; replanning"
+                        )
+                        lead = longer_lead(lead)
+                        continue
+                    self._move_requested_at = t_req
+                    seg.info.from_idle = True
+                    self.stream.start_now(seg)
+                self._installed(seg, target, info, source)
+                self._predicted_end = np.array(seg.states[-1], float)
+                return Outcome(True, "", seg, self._ros_time_of(seg.start), info)
         raise SolverError(
             f"planning overran its look-ahead {SPLICE_ATTEMPTS} times (last {lead} samples); the move continues unchanged"
         )
@@ -297,7 +388,7 @@ class GoalHandling:
         if stops is None or self._lifecycle != "active":
             return None
         t_req = time.monotonic()
-        with self._plan_lock:
+        with self._install_lock:
             k_req, timeline = self.stream.snapshot()
             if not timeline:
                 return None

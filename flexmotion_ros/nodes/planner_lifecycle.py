@@ -60,6 +60,7 @@ class LifecycleTransitions:
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Cut a move off with the hold, stop streaming; then disable ``commands``."""
         self._lifecycle = "inactive"  # goals are refused from now on
+        self._worker.cancel("the planner was deactivated")
         self._end_stream("deactivated")
         self._status.set_lifecycle("inactive")
         self.publish_diagnostics()
@@ -126,10 +127,14 @@ class LifecycleTransitions:
             + [("service", e) for e in self.services]
             + [("publisher", e) for e in self.publishers]
             + [("timer", e) for e in self.timers]
+            + [("guard", e) for e in self.guards]
         )
 
     def _teardown(self) -> None:
         """Undo configure: threads stopped, interfaces destroyed (the parameters stay)."""
+        worker = getattr(self, "_worker", None)
+        if worker is not None:
+            worker.stop("the planner was cleaned up")
         if self._stops is not None:
             self._stops.stop()
             self._stops = None
@@ -150,6 +155,7 @@ class LifecycleTransitions:
             "service": self.destroy_service,
             "publisher": self.destroy_lifecycle_publisher,
             "timer": self.destroy_timer,
+            "guard": self.destroy_guard_condition,
         }
         for kind, entity in self._configured_entities:
             destroy[kind](entity)

@@ -92,7 +92,7 @@ from typing import Any
 
 import numpy as np
 from nav_msgs.srv import GetPlan
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -106,6 +106,7 @@ from ..execution import (
     Segment,
 )
 from ..execution.measured_state import StateSource, state_settings
+from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
 from . import messages
 from .measured_state import StateListener
@@ -128,6 +129,9 @@ NODE_NAME = "flexmotion_planner"
 
 #: ``commands``: reliable and deep (10 s at 1 kHz), so that a lagging lockstep plant never loses a sample.
 COMMAND_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: ``~/goal``, ``~/joint_trajectory``: deep enough that a burst reaches the node, which keeps the newest goal and
+#: counts the others as superseded on /diagnostics (nothing is dropped unseen in DDS).
+GOAL_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: ``~/planned_trajectory``: late joiners get the current plan.
 LATCHED_QOS = QoSProfile(
     depth=1,
@@ -217,7 +221,8 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch_interval, max(5e-5, 0.2 / rate)))
 
-        self._plan_lock = threading.Lock()  # one plan at a time: the timeline stays consistent
+        # the splice of a plan into the timeline; never held while planning, so a stop never waits for a plan
+        self._install_lock = threading.Lock()
         self._plan_times: deque[float] = deque(maxlen=PLAN_TIME_WINDOW)
         self._sent_at_start = 0
         self._move_requested_at = 0.0
@@ -236,16 +241,22 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         if self._state.source is StateSource.MEASURED:
             self._listener = StateListener(self, self._state.topic)
 
-        planning = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(Float64, "~/goal", self._on_goal, 10, callback_group=planning)
+        # Goals are planned in the planning thread (newest wins), not in the executor: the executor stays free
+        # for ~/stop.  Reentrant: a ~/move waiting for its plan (a coroutine) must not hold up ~/stop; the
+        # executor is single-threaded, so callbacks still run one at a time.
+        requests = ReentrantCallbackGroup()
+        self._worker = RequestWorker(self._handle, self._not_planned)
+        self._wake = self.create_guard_condition(lambda: None, callback_group=requests)
+        self.create_subscription(Float64, "~/goal", self._on_goal, GOAL_QOS, callback_group=requests)
         self.create_subscription(
-            JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, 10, callback_group=planning
+            JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, GOAL_QOS, callback_group=requests
         )
-        self.create_service(GetPlan, "~/move", self._on_move, callback_group=planning)
-        self.create_service(GetPlan, "~/plan", self._on_plan, callback_group=planning)
-        self.create_service(Trigger, "~/stop", self._on_stop, callback_group=planning)
+        self.create_service(GetPlan, "~/move", self._on_move, callback_group=requests)
+        self.create_service(GetPlan, "~/plan", self._on_plan, callback_group=requests)
+        self.create_service(Trigger, "~/stop", self._on_stop, callback_group=requests)
 
         self._make_stream(v, rate)
+        self._worker.start()
         # A full garbage collection over everything imported (rclpy, scipy, ...) takes
         # ~100 ms on a loaded machine and holds the GIL: measured as a 100 ms hole in
         # the stream.  Freezing the start-up heap leaves only new objects to scan.
@@ -270,6 +281,9 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         if getattr(self, "_lifecycle", "finalized") in ("inactive", "active"):
             self._end_stream("shutdown")  # the hold first, while the context is valid
             self._lifecycle = "finalized"
+        worker = getattr(self, "_worker", None)
+        if worker is not None:
+            worker.stop()
         status = getattr(self, "_status", None)
         if status is not None:
             status.stop()
@@ -334,6 +348,8 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
             "command_subscribers": self.commands_publisher.get_subscription_count(),
             "replan_lead_samples": self._lead_samples(),
             "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
+            "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
+            "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
         }
 
     def status(self) -> tuple[int, str, dict[str, Any]]:

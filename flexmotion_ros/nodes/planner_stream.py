@@ -46,7 +46,12 @@ class StreamGlue:
         )
         # stops kept ready for the running move (started on activate)
         self._stops = StopPreparer(
-            self._plan_stop, self.stream.snapshot, lambda: self._config, self._wants_ready_stops, rate
+            self._plan_stop,
+            self.stream.snapshot,
+            lambda: self._config,
+            self._wants_ready_stops,
+            rate,
+            paused=self._planning_a_goal,
         )
 
     def _ros_clock_pair(self) -> dict[str, Any]:

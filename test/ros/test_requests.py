@@ -1,0 +1,84 @@
+"""Requests under load (issue 16): a stop never waits behind a goal; a burst of goals keeps the newest, counted."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+from flexmotion_ros.nodes import planner_goals
+
+from .conftest import goal_request, wait_for
+
+ASSUMED = {"state.source": "assumed"}
+
+
+def test_a_stop_never_waits_behind_a_goal_being_planned(ros, monkeypatch):
+    # issue 16: a ~/stop answer took 7.06 s behind a goal's plan (old main: the goal was planned in the
+    # executor, so ~/stop was not even taken until the 2 s plan below had finished)
+    real = planner_goals.plan_move
+    slow_goals = threading.Event()
+
+    def plan_move(config, problem, rate_hz=None):
+        if slow_goals.is_set() and problem.include_position:  # a goal, not a stop
+            time.sleep(2.0)
+        return real(config, problem, rate_hz)
+
+    monkeypatch.setattr(planner_goals, "plan_move", plan_move)
+    planner = ros.planner(**ASSUMED)
+    ros.connected(planner, subscribers=1)
+    probe = ros.probe
+    resp = ros.call(probe.move, goal_request(3.0))  # 1.9 s at 200 Hz
+    assert not resp.plan.header.frame_id.startswith("error"), resp.plan.header.frame_id
+    move = planner.installed[-1]
+    wait_for(lambda: len(planner.stop_preparer.ready()) >= 1, 10.0, "a ready stop")
+    slow_goals.set()
+    probe.goal_pub.publish(Float64(data=-1.0))
+    wait_for(lambda: (st := probe.planner_status()) is not None and st[2]["planning"] == "~/goal", 5.0, "goal planning")
+    t0 = time.monotonic()
+    ans = ros.call(probe.stop, Trigger.Request())
+    answered_s = time.monotonic() - t0
+    assert ans.success, ans.message
+    assert answered_s < 0.5, f"~/stop answered after {answered_s:.3f} s, behind the goal's 2 s plan"
+    stop = planner.installed[-1]
+    assert stop is not move and stop.info.target is None and stop.start < move.end
+    # the goal being planned was cancelled by the stop: dropped when its plan finished, never installed
+    wait_for(lambda: (st := probe.planner_status()) is not None and st[2]["planning"] == "", 5.0, "the goal's plan")
+    assert planner.installed[-1] is stop
+    assert int(probe.planner_status()[2]["goals_cancelled"]) == 1
+    wait_for(lambda: probe.command_values().size >= stop.end + 1, 10.0, "the stop and its hold")
+    time.sleep(0.1)
+    u = probe.command_values()
+    assert u[-1] == 0.0 and u.size == stop.end + 1
+
+
+def test_a_burst_of_goals_keeps_the_newest_and_counts_the_superseded_ones(ros):
+    # issue 16: 100 goals in under 3 ms were processed as 10-11; 89-90 vanished with no log line (depth 10)
+    planner = ros.planner(**ASSUMED)
+    ros.connected(planner, subscribers=1)
+    probe = ros.probe
+    qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+    pub = probe.create_publisher(Float64, "flexmotion_planner/goal", qos)
+    wait_for(lambda: pub.get_subscription_count() >= 1, 10.0, "the planner's ~/goal")
+    targets = np.round(np.linspace(0.01, 1.0, 100), 12)
+    t0 = time.monotonic()
+    for x in targets:
+        pub.publish(Float64(data=float(x)))
+    burst_s = time.monotonic() - t0
+
+    def planned() -> list:
+        return [s for s in planner.installed if s.info.source == "~/goal"]
+
+    wait_for(lambda: len(planned()) + planner._worker.superseded == 100, 15.0, "every goal planned or superseded")  # noqa: SLF001
+    superseded = planner._worker.superseded  # noqa: SLF001
+    assert 90 <= superseded <= 98, (superseded, burst_s)  # planned: the first, a few while the burst lasted, the newest
+    assert planned()[-1].info.target == targets[-1]  # the newest wins
+    wait_for(
+        lambda: (st := probe.planner_status()) is not None and int(st[2]["goals_superseded"]) == superseded,
+        5.0,
+        "the count on /diagnostics",
+    )
