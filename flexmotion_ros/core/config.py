@@ -29,7 +29,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError
+import numpy as np
+
+from .errors import ConfigError, GoalError
+from .model.boundary import MoveProblem
 from .model.modal_model import ModalModel, check_positive
 from .parameter_file import (
     dump_parameters,
@@ -41,11 +44,13 @@ from .parameter_file import (
 from .parameters import (
     KNOWN_PREFIXES,
     MAX_MOVE_DURATION_S,
+    MAX_MOVE_SAMPLES,
     NODE_NAMES,
     check_parameters,
     check_required_options,
 )
 from .shaping.shapers import SHAPERS
+from .time_optimal.rigid_body import rigid_time
 
 #: The planning methods, in the order of :data:`~flexmotion_ros.core.methods.METHODS` (which
 #: holds their planners and checks that the two lists agree): the default first, then every shaper.
@@ -71,6 +76,7 @@ DEFAULTS: dict[str, Any] = {
     "limits.position_min": -math.inf,
     "limits.position_max": math.inf,
     "max_move_duration_s": MAX_MOVE_DURATION_S,
+    "max_move_samples": MAX_MOVE_SAMPLES,
 }
 
 
@@ -99,6 +105,10 @@ class PlannerConfig:
     max_move_duration_s : float
         Longest move a goal may ask for (s, > 0): a goal whose rigid-body
         minimum time exceeds it is refused before planning.
+    max_move_samples : int
+        Most command samples a goal's plan may need at ``rate_hz`` (>= 1):
+        a goal whose rigid-body minimum time exceeds it is refused before
+        planning (:func:`check_move_samples`, by the nodes and ``flexmotion plan``).
     options : dict
         Method-specific parameters (dotted names), validated by their method.
     """
@@ -111,6 +121,7 @@ class PlannerConfig:
     position_max: float = math.inf
     options: dict = field(default_factory=dict)
     max_move_duration_s: float = MAX_MOVE_DURATION_S
+    max_move_samples: int = MAX_MOVE_SAMPLES
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u_max", check_positive("u_max", self.u_max))
@@ -132,12 +143,14 @@ class PlannerConfig:
                 "max_move_duration_s", f"must be a finite duration > 0 s, got {self.max_move_duration_s!r}"
             )
         object.__setattr__(self, "max_move_duration_s", budget)
+        samples = self.max_move_samples
+        if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+            raise ConfigError("max_move_samples", f"must be an integer >= 1, got {samples!r}")
+        object.__setattr__(self, "max_move_samples", int(samples))
         check_required_options(self.method, self.options)
 
     def check_goal(self, target: float) -> float:
         """Return ``target`` if finite and inside the position limits, else raise."""
-        from .errors import GoalError
-
         try:
             t = float(target)
         except (TypeError, ValueError):
@@ -163,6 +176,7 @@ class PlannerConfig:
                 "limits.position_min": self.position_min,
                 "limits.position_max": self.position_max,
                 "max_move_duration_s": self.max_move_duration_s,
+                "max_move_samples": self.max_move_samples,
             }
         )
         p.update(self.options)
@@ -206,6 +220,67 @@ def check_rate_hz(value: Any, parameter: str = "rate_hz") -> float:
     return x
 
 
+def check_sampling(model: ModalModel, rate_hz: float) -> None:
+    """Refuse a mode at or above the Nyquist frequency ``pi x rate_hz`` (rad/s) of the command.
+
+    A command held for ``1 / rate_hz`` s cannot resolve such a mode: it aliases
+    (at ``omega = 2 pi k rate_hz`` it is not controllable at all) and an exact
+    plan for it is ill-conditioned (issue 16: 1e5 rad/s at 1 kHz planned for
+    36.9 s).  A physical fact, so a parameter set with it is refused when it
+    is set, naming the mode and the rate it would need.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``model.omega[i]``, the Nyquist frequency and the rate needed.
+    """
+    nyquist = math.pi * float(rate_hz)
+    for i, w in enumerate(model.omega):
+        if w >= nyquist:
+            raise ConfigError(
+                f"model.omega[{i}]",
+                f"{w:g} rad/s is at or above the Nyquist frequency pi x rate_hz = {nyquist:.6g} rad/s of a "
+                f"{rate_hz:g} Hz command, which cannot resolve it; raise rate_hz above {w / math.pi:.6g} Hz "
+                "or leave the mode out",
+            )
+
+
+def check_move_samples(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> int:
+    """Refuse, in microseconds, a goal whose plan would need more than ``config.max_move_samples`` samples.
+
+    The count is a lower bound: the rigid body's own minimum time (closed
+    form) times the rate, so only goals that certainly exceed the budget
+    are refused (issue 16: a goal of 1e6 was a 47-minute move planned in 8.6 s).
+
+    Parameters
+    ----------
+    config : PlannerConfig
+    problem : MoveProblem
+    rate_hz : float, optional
+        The plan's rate (Hz); None: ``config.rate_hz``.
+
+    Returns
+    -------
+    int
+        The lower bound on the samples.
+
+    Raises
+    ------
+    GoalError
+        Naming ``goal`` and the budget ``max_move_samples``.
+    """
+    rate = float(rate_hz) if rate_hz else config.rate_hz
+    T = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
+    samples = T * rate
+    if not samples <= config.max_move_samples:
+        raise GoalError(
+            "goal",
+            f"the move needs at least {samples:.4g} samples at {rate:g} Hz ({T:.4g} s, rigid-body minimum time), "
+            f"over the budget max_move_samples = {config.max_move_samples}; move less far or raise max_move_samples",
+        )
+    return math.ceil(samples)
+
+
 def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
     """Build and validate a :class:`PlannerConfig` from flat ROS parameters.
 
@@ -236,6 +311,7 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         and not k.startswith(NOT_OPTION_PREFIXES)
         and not (isinstance(v, (list, tuple)) and not v)  # an empty list is unset, as in rcl
     }
+    check_sampling(model, check_rate_hz(p["rate_hz"]))
     return PlannerConfig(
         model=model,
         u_max=p["u_max"],
@@ -245,6 +321,7 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         position_max=p["limits.position_max"],
         options=options,
         max_move_duration_s=p["max_move_duration_s"],
+        max_move_samples=p["max_move_samples"],
     )
 
 
@@ -256,13 +333,15 @@ def load_config(path: str | Path, node_name: str | None = "flexmotion_planner") 
 
 
 def write_config(path: str | Path, config: PlannerConfig, header: str = "") -> None:
-    """Write ``config`` as a ROS 2 parameter file (finite limits only, the move budget if not the default)."""
+    """Write ``config`` as a ROS 2 parameter file (finite limits only, the move budgets if not the defaults)."""
     params = config.to_parameters()
     for key in ("limits.position_min", "limits.position_max"):
         if not math.isfinite(params[key]):
             del params[key]
     if params["max_move_duration_s"] == MAX_MOVE_DURATION_S:
         del params["max_move_duration_s"]
+    if params["max_move_samples"] == MAX_MOVE_SAMPLES:
+        del params["max_move_samples"]
     Path(path).write_text(dump_parameters(params, header))
 
 
@@ -274,7 +353,9 @@ __all__ = [
     "NOT_OPTIONS",
     "NOT_OPTION_PREFIXES",
     "PlannerConfig",
+    "check_move_samples",
     "check_rate_hz",
+    "check_sampling",
     "config_from_parameters",
     "dump_parameters",
     "flatten",

@@ -27,7 +27,7 @@ from typing import Any
 import yaml
 
 from .errors import ConfigError
-from .parameters import rcl_scalar, ros_type
+from .parameters import KNOWN, ParameterType, rcl_scalar, ros_type
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -199,5 +199,5 @@ def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
     return (header + body) if header else body
 
 
-#: Parameters that are integers, not doubles.
-_INT_PARAMS = {"robust_order", "design.force_on", "fuel_curve.points"}
+#: Parameters that are integers, not doubles: the registry's, and the design command's own.
+_INT_PARAMS = {p.name for p in KNOWN.values() if p.type is ParameterType.INTEGER} | {"design.force_on"}

@@ -109,6 +109,9 @@ DA, SA = ParameterType.DOUBLE_ARRAY, ParameterType.STRING_ARRAY
 
 #: Default of ``max_move_duration_s`` (s): the longest move a goal may ask for (one hour).
 MAX_MOVE_DURATION_S = 3600.0
+#: Default of ``max_move_samples``: the most command samples a goal's plan may need (100 s at 1 kHz,
+#: 500 s at 200 Hz; a plan's arrays are then ~10 MB and it plans in seconds, not minutes).
+MAX_MOVE_SAMPLES = 100_000
 
 #: The planner configuration (:class:`~flexmotion_ros.core.config.PlannerConfig`).
 CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
@@ -127,6 +130,13 @@ CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
         D,
         f"s, > 0, default {MAX_MOVE_DURATION_S:g}",
         "longest move a goal may ask for (rigid-body minimum time); longer goals are refused up front",
+    ),
+    _p(
+        "max_move_samples",
+        I,
+        f"integer >= 1, default {MAX_MOVE_SAMPLES}",
+        "most command samples a goal's plan may need at rate_hz (rigid-body minimum time x rate_hz); "
+        "larger goals are refused up front",
     ),
 )
 

@@ -22,8 +22,9 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.config import PlannerConfig
+from ..core.config import PlannerConfig, check_move_samples
 from ..core.errors import FlexmotionError, GoalError, InputError, SolverError
+from ..core.methods.common import check_move_budget
 from ..core.methods.table import plan_move
 from ..core.model.boundary import state_to_rest
 from ..core.results import PlanResult
@@ -327,6 +328,8 @@ class GoalHandling:
             else:
                 at, x0 = point.sample, point.state
             problem = state_to_rest(model, config.u_max, x0, target)
+            check_move_budget(config, problem)  # both budgets in microseconds: an absurd goal never reaches
+            check_move_samples(config, problem)  # the planner
             t0 = time.perf_counter()
             result = self._plan_to(config, problem, arrival_time)
             plan_time = time.perf_counter() - t0
