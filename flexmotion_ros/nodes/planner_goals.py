@@ -313,6 +313,12 @@ class GoalHandling:
         model = config.model
         if target is not None:
             target = config.check_goal(target)
+            if execute and self.commands_publisher.get_subscription_count() == 0:
+                raise GoalError(
+                    "commands",
+                    "no subscriber is matched on 'commands' (writer side): nothing would move; start the "
+                    "controller, or wait for the planner's 'streaming ready' (DDS discovery can take seconds)",
+                )
         lead = self._lead_samples()
         for _attempt in range(SPLICE_ATTEMPTS):
             k_next, timeline = self.stream.snapshot()

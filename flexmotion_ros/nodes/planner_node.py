@@ -233,7 +233,14 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         self.commands_publisher = self.create_lifecycle_publisher(Float64MultiArray, "commands", COMMAND_QOS)
         self._trajectory_pub = self.create_publisher(JointTrajectory, "~/planned_trajectory", LATCHED_QOS)
         # /diagnostics from its own thread (started last), not an executor timer
-        self._status = StatusReporter(self, float(v["diagnostics_period_s"]), self._position, self._status_context)
+        self._status = StatusReporter(
+            self,
+            float(v["diagnostics_period_s"]),
+            self._position,
+            self._status_context,
+            tick=self._check_streaming_ready,
+        )
+        self._command_subscribers = 0  # writer-side matches of 'commands' last seen (the status thread watches)
 
         self._listener: StateListener | None = None
         #: The state this planner's own last move ends in (None before its first): what the measurement should show.
@@ -346,11 +353,28 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
             "u_max": self._config.u_max,
             "modes": self._config.model.n_modes,
             "command_subscribers": self.commands_publisher.get_subscription_count(),
+            "streaming_ready": self._command_subscribers > 0,
             "replan_lead_samples": self._lead_samples(),
             "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
         }
+
+    def _check_streaming_ready(self) -> None:
+        """Say when ``commands`` gets (or loses) its first subscriber, judged on the writer side (status thread).
+
+        A late joiner may be matched only seconds after it starts (Fast DDS
+        announces every ~3.6 s): the writer's matched count, not the reader's,
+        says when samples published from now on reach it.
+        """
+        n = self.commands_publisher.get_subscription_count()
+        before, self._command_subscribers = self._command_subscribers, n
+        if n > 0 and before == 0:
+            self.get_logger().info(f"streaming ready: 'commands' matched by {n} subscriber(s) (writer side)")
+            self.publish_diagnostics()
+        elif n == 0 and before > 0:
+            self.get_logger().warning("'commands' lost its last subscriber: goals are refused until one matches")
+            self.publish_diagnostics()
 
     def status(self) -> tuple[int, str, dict[str, Any]]:
         """``(level, message, values)`` of the status on /diagnostics."""

@@ -13,6 +13,7 @@ otherwise leave the status stale exactly when it matters.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -23,6 +24,8 @@ from rclpy.node import Node
 from . import messages
 
 DIAGNOSTIC_NAME = "flexmotion_planner: motion"
+#: The status thread's own period (s): the ``tick`` callback runs this often, whatever ``period_s``.
+TICK_S = 0.05
 
 
 class StatusReporter:
@@ -44,13 +47,22 @@ class StatusReporter:
         Returns the node's own values of the status (position at rest, the
         configuration's figures, subscribers, ...), in the order they appear
         after ``state``, ``planning``, ``last_error`` and ``target``.
+    tick : callable, optional
+        Called from the thread every :data:`TICK_S` (the planner checks its
+        writer-side matches there).
     """
 
     def __init__(
-        self, node: Node, period_s: float, target: float | None, context: Callable[[], Mapping[str, Any]]
+        self,
+        node: Node,
+        period_s: float,
+        target: float | None,
+        context: Callable[[], Mapping[str, Any]],
+        tick: Callable[[], None] | None = None,
     ) -> None:
         self._node = node
         self._context = context
+        self._tick = tick
         self._lock = threading.Lock()
         self._state = "idle"
         self._lifecycle = "unconfigured"
@@ -75,9 +87,14 @@ class StatusReporter:
             self._thread.join(timeout=2.0)
 
     def _loop(self) -> None:
-        while not self._stop.wait(self._period):
+        due = time.monotonic() + self._period
+        while not self._stop.wait(min(TICK_S, max(0.0, due - time.monotonic()))):
             try:
-                self.publish()
+                if self._tick is not None:
+                    self._tick()
+                if time.monotonic() >= due:
+                    due += self._period
+                    self.publish()
             except Exception as exc:  # noqa: BLE001 -- a shutdown race (context gone) ends the loop
                 if not self._stop.is_set():
                     self._node.get_logger().warning(f"/diagnostics: {type(exc).__name__}: {exc}")

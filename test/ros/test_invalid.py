@@ -63,10 +63,14 @@ def test_bad_goal_is_refused_nothing_moves_node_keeps_serving(ros, goal, words):
 
 
 def test_goal_the_planner_cannot_serve_is_refused(ros):
-    """A move needing over 5e6 samples at the rate: refused by the core with the reason."""
+    """A move needing over 5e6 samples at the rate: refused by the sample budget, or beyond it by the core."""
     planner = ros.planner(rate_hz=2e5, **{"state.source": "assumed"})  # no plant: plan from the assumed state
     ros.connected(planner, subscribers=1)
     resp = ros.call(ros.probe.move, goal_request(2000.0))  # 28 s at 200 kHz
+    assert not resp.plan.poses and "max_move_samples = 100000" in messages.path_error(resp.plan)
+    (res,) = _set(ros, {"max_move_samples": 10_000_000})  # past the budget: the core's own refusal
+    assert res.successful, res.reason
+    resp = ros.call(ros.probe.move, goal_request(2000.0))
     assert not resp.plan.poses and "rate_hz" in messages.path_error(resp.plan), resp.plan.header.frame_id
     assert "rate_hz" in error_status(ros) or wait_for(lambda: "rate_hz" in error_status(ros), 5.0) is None
     resp = ros.call(ros.probe.plan, goal_request(1e-4))

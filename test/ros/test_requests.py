@@ -82,3 +82,44 @@ def test_a_burst_of_goals_keeps_the_newest_and_counts_the_superseded_ones(ros):
         5.0,
         "the count on /diagnostics",
     )
+
+
+def test_the_planner_says_when_streaming_is_ready_and_refuses_goals_nobody_would_hear(ros):
+    # issue 16: a restarted planner found its subscribers only after 4.24 s (late-joiner discovery) and
+    # streamed into the void meanwhile; readiness is the writer side's matched count
+    from std_msgs.msg import Float64MultiArray
+
+    from flexmotion_ros.nodes.planner_node import COMMAND_QOS, PlannerNode
+
+    from .conftest import FAST, NAMESPACE, overrides
+
+    params = {**FAST, **ASSUMED, "publish_hold_when_idle": False}
+    planner = ros.add(
+        PlannerNode(
+            context=ros.context,
+            namespace=NAMESPACE,
+            parameter_overrides=overrides(params),
+            cli_args=["--ros-args", "-r", "commands:=lonely_commands"],
+        )
+    )
+    probe = ros.probe
+    assert probe.move.wait_for_service(timeout_sec=10.0)
+    time.sleep(0.3)
+    st = probe.planner_status()
+    assert st is not None and st[2]["streaming_ready"] == "false" and int(st[2]["command_subscribers"]) == 0
+    reason = ros.call(probe.move, goal_request(0.5)).plan.header.frame_id or ""
+    assert reason.startswith("error: commands: no subscriber is matched on 'commands'"), reason
+    assert not planner.installed
+    assert ros.call(probe.plan, goal_request(0.5)).plan.poses  # planning only still answers
+    got: list[float] = []
+    probe.create_subscription(Float64MultiArray, "lonely_commands", lambda m: got.append(m.data[0]), COMMAND_QOS)
+    wait_for(
+        lambda: (st := probe.planner_status()) is not None and st[2]["streaming_ready"] == "true",
+        10.0,
+        "the planner saying it is ready",
+    )
+    resp = ros.call(probe.move, goal_request(0.5))
+    assert not resp.plan.header.frame_id.startswith("error"), resp.plan.header.frame_id
+    seg = planner.installed[-1]
+    wait_for(lambda: len(got) >= seg.samples + 1, 10.0, "every command and the hold")
+    assert got[-1] == 0.0 and len(got) == seg.samples + 1  # nothing lost: matched before the first sample
