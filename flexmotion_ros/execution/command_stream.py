@@ -171,6 +171,7 @@ class CommandStream:
         self._sleep = sleep
         self._cond = threading.Condition()
         self._queue: list[Segment] = []
+        self._version = 0  # segments installed: a plan from an older snapshot must not be installed
         self._k_next = 0
         self._t_anchor = clock()  # start() re-anchors: sample 0 is due when the stream starts
         self._k_anchor = 0
@@ -301,6 +302,21 @@ class CommandStream:
         with self._cond:
             return self._k_next, list(self._queue)
 
+    def versioned_snapshot(self) -> tuple[int, list[Segment], int]:
+        """``(k_next, segments, version)``: :meth:`snapshot` and the timeline's version, read together.
+
+        The version counts the segments installed (:meth:`start_now`, :meth:`splice`): a plan made from a
+        snapshot is still valid to install only while the version is unchanged (two planners, one timeline).
+        """
+        with self._cond:
+            return self._k_next, list(self._queue), self._version
+
+    @property
+    def version(self) -> int:
+        """How many segments have been installed (the timeline's version)."""
+        with self._cond:
+            return self._version
+
     @property
     def idle(self) -> bool:
         """No segment is queued."""
@@ -335,6 +351,7 @@ class CommandStream:
             self._rebase_if_sleeping()
             segment.start = self._k_next
             self._queue.append(segment)
+            self._version += 1
             self._cond.notify_all()
             return segment.start
 
@@ -352,6 +369,7 @@ class CommandStream:
             self._queue = [s for s in self._queue if s.start < at]
             segment.start = at
             self._queue.append(segment)
+            self._version += 1
             self._cond.notify_all()
             return True
 

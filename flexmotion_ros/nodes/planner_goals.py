@@ -11,6 +11,8 @@ when one is usable.  Refusals never raise: one line in the log, on
 
 from __future__ import annotations
 
+import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -76,6 +78,23 @@ class Outcome:
     info: dict = field(default_factory=dict)
 
 
+#: ``~/stop`` answers within this (s): a stop still being planned then is answered with where it will start.
+STOP_ANSWER_S = 0.01
+#: A stop waits at most this (s) for a ready stop being planned (it starts sooner than one planned then).
+STOP_READY_WAIT_S = 0.02
+
+
+class _Until:
+    """Awaitable in an rclpy coroutine callback: done once ``predicate()`` is true (checked when the executor wakes)."""
+
+    def __init__(self, predicate: Callable[[], bool]) -> None:
+        self._predicate = predicate
+
+    def __await__(self):
+        while not self._predicate():
+            yield
+
+
 class GoalHandling:
     """The planner node's requests, plans and stops (a mixin of :class:`~.planner_node.PlannerNode`)."""
 
@@ -89,7 +108,9 @@ class GoalHandling:
             self._refuse("~/joint_trajectory", str(exc))
             return
         if goal.target is None:
-            self._stop_now("~/joint_trajectory (empty: stop)")
+            source = "~/joint_trajectory (empty: stop)"
+            if self._stop_begin(source)[0] is None:
+                self._plan_stop_async(source)
         else:
             self._submit(RequestKind.GOAL, goal.target, "~/joint_trajectory", arrival_time=goal.arrival_time)
 
@@ -115,6 +136,15 @@ class GoalHandling:
         if kind is RequestKind.GOAL and self._lifecycle != "active":
             reply(self._refuse(source, f"the planner is {self._lifecycle} (lifecycle): activate it to move"))
             return
+        try:  # a bad target is refused on receipt, never coalesced away unseen
+            self._config.check_goal(target)
+        except FlexmotionError as exc:
+            reply(self._refuse(source, str(exc)))
+            return
+        if kind is RequestKind.GOAL:
+            with self._stop_lock:  # the newest wins: a stop still being planned gives way to this goal
+                if self._stop_ticket is not None and not self._stop_ticket.cancelled:
+                    self._stop_ticket.cancelled = f"superseded by a newer goal ({source})"
         self._worker.submit(Request(kind=kind, target=target, source=source, arrival_time=arrival_time, answer=reply))
 
     def _handle(self, req: Request) -> Outcome:
@@ -168,30 +198,78 @@ class GoalHandling:
         except Exception:  # noqa: BLE001, S110 -- the node is being destroyed: nobody waits any more
             pass
 
-    def _stop_now(self, source: str) -> Outcome:
-        """A stop: cancel the goals waiting or being planned, then a ready stop, else plan it now.
+    def _stop_begin(self, source: str) -> tuple[Outcome | None, dict]:
+        """A stop: cancel the goals waiting or being planned, then splice a ready stop (None if none is usable).
 
         Runs in the executor thread at once: it never waits behind a goal's plan
-        (the goal being planned is dropped when its plan finishes).
+        (the goal being planned is dropped when its plan finishes).  Returns the
+        outcome (None: plan the stop, :meth:`_plan_stop_async`) and where the
+        request came (``request_sample``, ``lead_samples``: the look-ahead then).
         """
+        k_next, timeline = self.stream.snapshot()
+        where = {"request_sample": k_next, "lead_samples": self._lead_samples(), "moving": bool(timeline)}
         if self._lifecycle == "active":
             self._worker.cancel(f"superseded by a stop ({source}) before it started")
-        out = self._ready_stop(source)
-        if out is None:  # none usable: plan the stop now (a preemption with the look-ahead)
-            out = self.request(None, execute=True, source=source)
-        return out
+        return self._ready_stop(source), where
 
-    def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        out = self._stop_now("~/stop")
+    def _plan_stop_async(self, source: str) -> Future:
+        """Plan the stop in a thread of its own (one at a time: a second stop shares the first one's result).
+
+        Not the planning thread: that may still be finishing a cancelled goal.  A
+        goal submitted meanwhile supersedes the stop (newest wins).
+        """
+        with self._stop_lock:
+            if self._stop_future is not None and not self._stop_future.done():
+                return self._stop_future
+            done: Future = Future()
+            ticket = Request(kind=RequestKind.GOAL, target=math.nan, source=source, answer=lambda out: None)
+            self._stop_future, self._stop_ticket = done, ticket
+
+        def work() -> None:
+            try:
+                out = self.request(None, execute=True, source=source, ticket=ticket)
+            except Exception as exc:  # noqa: BLE001 -- request() refuses instead of raising; never leave it unanswered
+                out = Outcome(False, f"{type(exc).__name__}: {exc}")
+            done.set_result(out)
+            self._wake_executor()
+
+        threading.Thread(target=work, name="flexmotion-stop", daemon=True).start()
+        return done
+
+    async def _on_stop(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        source = "~/stop"
+        out, where = self._stop_begin(source)
+        if out is None:  # none ready: planned in its own thread; answered when spliced or after STOP_ANSWER_S
+            done = self._plan_stop_async(source)
+            deadline = time.monotonic() + STOP_ANSWER_S
+            timer = threading.Timer(STOP_ANSWER_S, self._wake_executor)
+            timer.daemon = True
+            timer.start()
+            # mid-move: answered by the deadline; idle: nothing moves meanwhile, the answer waits for the
+            # measured state (a restarted planner may find the machine moving)
+            await _Until(lambda: done.done() or (where["moving"] and time.monotonic() >= deadline))
+            timer.cancel()
+            if not done.done():
+                k, lead = where["request_sample"], where["lead_samples"]
+                response.success = True
+                response.message = (
+                    f"stopping: the stop is being planned from the state predicted at sample {k + lead}, "
+                    f"{lead} samples after the request (look-ahead {lead}); if it cannot be planned, the move "
+                    "continues unchanged to its own end (see /diagnostics)"
+                )
+                return response
+            out = done.result()
         response.success = out.ok
         if not out.ok:
             response.message = out.reason
         elif out.segment is None:
             response.message = out.reason or "already at rest"
         else:
+            k_req, lead = where["request_sample"], where["lead_samples"]
             response.message = (
                 f"stopping: {out.segment.samples} samples ({out.segment.samples * self.stream.dt:.6g} s), "
-                f"at rest at {out.segment.states[-1, 0]:.9g}"
+                f"at rest at {out.segment.states[-1, 0]:.9g}; from sample {out.segment.start}, "
+                f"{out.segment.start - k_req} samples after the request (look-ahead {lead})"
             )
         return response
 
@@ -321,7 +399,7 @@ class GoalHandling:
                 )
         lead = self._lead_samples()
         for _attempt in range(SPLICE_ATTEMPTS):
-            k_next, timeline = self.stream.snapshot()
+            k_next, timeline, version = self.stream.versioned_snapshot()
             point = splice_point(timeline, k_next, lead, model.n_modes)  # None: idle
             if point is None:
                 at = None
@@ -352,6 +430,9 @@ class GoalHandling:
             with self._install_lock:  # held for the splice only: a stop never waits for a plan
                 if ticket is not None and ticket.cancelled:
                     return None
+                if self.stream.version != version:  # a stop or a goal was installed meanwhile: plan from it
+                    self.get_logger().info(f"{source}: the timeline changed while planning; replanning")
+                    continue
                 if at is None and seg.samples == 0:
                     self._position = float(x0[0])  # measured there, at rest
                     return Outcome(True, f"already at {self._position:.9g}", None, self._ros_time_of(k_next), info)
@@ -402,7 +483,7 @@ class GoalHandling:
             if not timeline:
                 return None
             # none ready but one being planned: worth waiting for (it starts sooner than a plan made now)
-            ready = stops.take(wait_s=min(0.2, 2.0 * max(stops.plan_times, default=0.0)))
+            ready = stops.take(wait_s=min(STOP_READY_WAIT_S, 2.0 * max(stops.plan_times, default=0.0)))
             if ready is None:
                 return None
             seg = ready.segment

@@ -223,6 +223,10 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
 
         # the splice of a plan into the timeline; never held while planning, so a stop never waits for a plan
         self._install_lock = threading.Lock()
+        # the stop being planned on demand (one at a time) and its ticket (a newer goal cancels it)
+        self._stop_lock = threading.Lock()
+        self._stop_future = None
+        self._stop_ticket = None
         self._plan_times: deque[float] = deque(maxlen=PLAN_TIME_WINDOW)
         self._sent_at_start = 0
         self._move_requested_at = 0.0

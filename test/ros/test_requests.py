@@ -44,6 +44,8 @@ def test_a_stop_never_waits_behind_a_goal_being_planned(ros, monkeypatch):
     answered_s = time.monotonic() - t0
     assert ans.success, ans.message
     assert answered_s < 0.5, f"~/stop answered after {answered_s:.3f} s, behind the goal's 2 s plan"
+    # no ready stop while the goal was planned (the preparer pauses): planned on demand, answered at once
+    wait_for(lambda: planner.installed[-1].info.target is None, 5.0, "the stop installed")
     stop = planner.installed[-1]
     assert stop is not move and stop.info.target is None and stop.start < move.end
     # the goal being planned was cancelled by the stop: dropped when its plan finished, never installed

@@ -24,7 +24,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from flexmotion_ros.execution import lead_samples
-from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES
+from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, STOP_PREP_DUTY
 from flexmotion_ros.nodes.planner_node import PlannerNode
 
 from .conftest import FAST, NAMESPACE, goal_request, overrides, wait_for
@@ -177,8 +177,11 @@ def test_a_stop_takes_effect_within_a_few_samples_from_a_ready_stop(ros):
     latency = stop.start - k_req  # samples from the request to the stop's first command
     # the old main's look-ahead for the same planning time, its shortest possible stop latency
     old_lead = lead_samples(stops.plan_times, 0.05, 200.0)
-    bound = max(8, math.ceil(1.1 * max(stops.plan_times) * 200.0) + STOP_MARGIN_SAMPLES)
-    assert 1 <= latency <= bound and latency < old_lead, (latency, bound, old_lead, list(stops.plan_times))
+    # ready stops are one preparer cycle apart: a planning time / STOP_PREP_DUTY (the preparer plans at most
+    # that fraction of the time), and the earliest is at least STOP_MARGIN_SAMPLES ahead
+    cycle = math.ceil((1.0 + 1.0 / STOP_PREP_DUTY) * max(stops.plan_times) * 200.0)
+    bound = max(8, cycle + STOP_MARGIN_SAMPLES)
+    assert 1 <= latency <= bound and latency <= old_lead, (latency, bound, old_lead, list(stops.plan_times))
     np.testing.assert_array_equal(stop.states[0], move.state_at(stop.start))  # from exactly the predicted state
     assert stop.info.result.sampled is not None  # a verified sampled plan, as every plan
     np.testing.assert_allclose(stop.states[-1][1:], 0.0, atol=1e-6)  # at rest: velocity and every mode
