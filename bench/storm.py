@@ -185,6 +185,7 @@ class Storm:
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1.0)
+        self.thread.join(timeout=5.0)
         self.node.destroy_node()
 
 
@@ -445,6 +446,7 @@ def run_mode(args, mode: str) -> dict:
         commands=int(t.size),
         gap_max_ms=float(gaps_ms.max()),
         gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / RATE_HZ)),
+        gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / RATE_HZ)[:40]],
         gap_p999_ms=float(np.percentile(gaps_ms, 99.9)),
         settled_checked=len(settled),
         settled_ok=int(sum(e <= 1e-9 for e in settled)),

@@ -378,15 +378,18 @@ class CommandStream:
         with self._cond:
             return self._t_anchor + (k - self._k_anchor) * self.dt
 
-    def recent_timing(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Send times (clock s) and lateness (s) of the last ``n`` samples sent.
+    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
 
         Both empty for ``n <= 1`` (a single sample has no period); at most
-        the ``record`` samples kept.
+        the ``record`` samples kept.  ``before``: the samples sent since the
+        window ended (a report made later, off the stream thread).
         """
         if n <= 1:
             return np.empty(0), np.empty(0)
-        return np.array(list(self.sent_times)[-n:]), np.array(list(self.lateness)[-n:])
+        times, late = list(self.sent_times), list(self.lateness)  # C copies: atomic under the interpreter lock
+        end_t, end_l = len(times) - before, len(late) - before
+        return np.array(times[max(0, end_t - n) : end_t]), np.array(late[max(0, end_l - n) : end_l])
 
     # --------------------------------------------------------------------- loop
     def step(self) -> StreamStep | None:

@@ -84,6 +84,11 @@ STOP_ANSWER_S = 0.01
 STOP_READY_WAIT_S = 0.02
 
 
+def _plan_here(config: PlannerConfig, problem, rate_hz: float | None) -> PlanResult:
+    """``plan_move`` in this process (looked up at each call: tests replace it)."""
+    return plan_move(config, problem, rate_hz)
+
+
 class _Until:
     """Awaitable in an rclpy coroutine callback: done once ``predicate()`` is true (checked when the executor wakes)."""
 
@@ -355,13 +360,33 @@ class GoalHandling:
             return None
         return None if at_rest(self._config.model, x) else x
 
+    def _planner_for(self, problem) -> Callable[..., PlanResult]:
+        """Where ``problem`` is planned: the stop child (final position free) or the goal child; else here.
+
+        A child that died is replaced by planning here, in a thread (a fork from a threaded process is
+        not safe): the stream then shares the lock again, which the log says once.
+        """
+        children = self._children
+        if children is None:
+            return _plan_here
+        child = children.goal if problem.include_position else children.stop
+        if child.dead:
+            self.get_logger().error(f"planning process {child.name} is gone: planning in-process from now on")
+            self._children = None
+            return _plan_here
+        return child
+
     def _plan_to(self, config: PlannerConfig, problem, arrival_time: float | None) -> PlanResult:
-        """``plan_move``; with ``arrival_time`` (s) method ``fixed_time`` (``trajectory.early_arrival`` if too early)."""
+        """``plan_move``; with ``arrival_time`` (s) method ``fixed_time`` (``trajectory.early_arrival`` if too early).
+
+        In the planning child for goals, or for stops (the final position free), when the node has them.
+        """
+        plan = self._planner_for(problem)
         if arrival_time is None:
-            return plan_move(config, problem, config.rate_hz)
+            return plan(config, problem, config.rate_hz)
         timed = replace(config, method="fixed_time", options={**config.options, "arrival_time": float(arrival_time)})
         try:
-            return plan_move(timed, problem, config.rate_hz)
+            return plan(timed, problem, config.rate_hz)
         except InputError as exc:
             if exc.parameter != "arrival_time":
                 raise
@@ -370,7 +395,7 @@ class GoalHandling:
                     f"time_from_start {arrival_time:.6g} s is before the optimum: arriving as fast as possible "
                     "(trajectory.early_arrival: optimum)"
                 )
-                return plan_move(config, problem, config.rate_hz)
+                return plan(config, problem, config.rate_hz)
             raise GoalError(
                 "joint_trajectory.points[-1].time_from_start",
                 f"{arrival_time:.9g} s is before the fastest arrival ({exc.reason}); refused "
@@ -459,7 +484,8 @@ class GoalHandling:
     def _plan_stop(self, x0: np.ndarray, config: PlannerConfig) -> Segment:
         """The stop from ``x0`` (final position free), planned and verified like every plan (preparer thread)."""
         t0 = time.perf_counter()
-        result = plan_move(config, state_to_rest(config.model, config.u_max, x0, None), config.rate_hz)
+        problem = state_to_rest(config.model, config.u_max, x0, None)
+        result = self._planner_for(problem)(config, problem, config.rate_hz)
         sampled = result.sampled
         if sampled is None:
             raise SolverError(f"method {config.method} returned no sampled command sequence")

@@ -106,6 +106,7 @@ from ..execution import (
     Segment,
 )
 from ..execution.measured_state import StateSource, state_settings
+from ..execution.plan_process import PlanningProcesses
 from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
 from . import messages
@@ -149,6 +150,11 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
     autostart : bool
         Configure and activate at once (``ros2 run``, the tests); False: stay
         unconfigured until ``~/change_state`` (or :meth:`trigger_configure`).
+    planning : PlanningProcesses, optional
+        Plan in these child processes (forked before ``rclpy.init``, as
+        :func:`main` does), so that planning never holds this process's
+        interpreter lock while the stream thread needs it; None: plan in a
+        thread of this process.  The node does not close them.
 
     Raises
     ------
@@ -156,8 +162,11 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         The start-up parameters are invalid (the node is destroyed).
     """
 
-    def __init__(self, *, autostart: bool = True, **node_kwargs: Any) -> None:
+    def __init__(
+        self, *, autostart: bool = True, planning: PlanningProcesses | None = None, **node_kwargs: Any
+    ) -> None:
         super().__init__(NODE_NAME, **node_kwargs)
+        self._children = planning
         self._lifecycle = "unconfigured"  # unconfigured / inactive / active / finalized
         self._configure_error: BaseException | None = None
         self._configured_entities: list[tuple[str, Any]] = []
@@ -401,7 +410,16 @@ def main(args: list[str] | None = None) -> int:
     and spins holding the GIL (ros2/rclpy#1452, fixed upstream by #1547):
     measured here, a 100 Hz subscription in it stalled for up to 5.5 s.
     """
-    return run(PlannerNode, SingleThreadedExecutor, NODE_NAME, args)
+    try:  # before rclpy.init: a fork is safe only while this process has one thread
+        planning: PlanningProcesses | None = PlanningProcesses.fork()
+    except (RuntimeError, OSError) as exc:
+        sys.stderr.write(f"{NODE_NAME}: planning in-process (no planning processes: {exc})\n")
+        planning = None
+    try:
+        return run(lambda: PlannerNode(planning=planning), SingleThreadedExecutor, NODE_NAME, args)
+    finally:
+        if planning is not None:
+            planning.close()
 
 
 __all__ = ["DIAGNOSTIC_NAME", "NODE_NAME", "PLANNER_NODE_ONLY", "PlannerNode", "main"]

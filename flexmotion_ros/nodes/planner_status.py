@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -73,6 +74,8 @@ class StatusReporter:
         self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._period = float(period_s)
         self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._deferred: deque[Callable[[], None]] = deque()
         self._thread = threading.Thread(target=self._loop, name="flexmotion-diagnostics", daemon=True)
 
     # ------------------------------------------------------------------ thread
@@ -83,13 +86,29 @@ class StatusReporter:
     def stop(self) -> None:
         """End the periodic publishing (waits up to 2 s for the thread)."""
         self._stop.set()
+        self._wake.set()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
 
+    def defer(self, work: Callable[[], None]) -> None:
+        """Run ``work`` in the status thread soon (within :data:`TICK_S`): keeps it off the caller's thread.
+
+        The stream thread hands its end-of-move report here: statistics, log and
+        /diagnostics must not delay the next sample.
+        """
+        self._deferred.append(work)
+        self._wake.set()
+
     def _loop(self) -> None:
         due = time.monotonic() + self._period
-        while not self._stop.wait(min(TICK_S, max(0.0, due - time.monotonic()))):
+        while not self._stop.is_set():
+            self._wake.wait(min(TICK_S, max(0.0, due - time.monotonic())))
+            self._wake.clear()
+            if self._stop.is_set():
+                return
             try:
+                while self._deferred:
+                    self._deferred.popleft()()
                 if self._tick is not None:
                     self._tick()
                 if time.monotonic() >= due:
