@@ -199,7 +199,8 @@ def planner_specs() -> list[Spec]:
             "replan_lead_s",
             0.05,
             "smallest look-ahead (s) of a preemption or stop: the new plan starts at a sample at least this far ahead "
-            "(and at least 1.5 x the slowest recent plan + 20 ms), in [0, 60].",
+            "(and 1.5 x the recent planning time + 20 ms, the slowest 20 % of the last 20 plans set aside, at most "
+            "1 s), in [0, 60].",
             fp_range=(0.0, 60.0),
         ),
         Spec(

@@ -35,11 +35,20 @@ Interfaces (standard types only)
     samples, method, certificate, planning time, stream timing
     (:mod:`.planner_status`).
 
+Requests (:mod:`.planner_goals`): goals are planned off the executor, in one
+planning thread (:mod:`flexmotion_ros.execution.requests`): the newest goal
+wins, a goal superseded before it was planned is answered so and counted
+(``goals_superseded`` on /diagnostics); ``~/stop`` cancels the goal being
+planned and is answered within 10 ms.  The executable plans in two forked
+child processes (:mod:`flexmotion_ros.execution.plan_process`: goals, stops),
+so planning never holds the stream thread's interpreter lock.
+
 Preemption: a goal (or stop) during a move is planned from the state the
 timeline predicts at a sample ``k_s`` far enough ahead to cover the planning
-time (``replan_lead_s``, at least 1.5 x the slowest recent plan + 20 ms); the
-new sequence is spliced in at ``k_s``.  If planning overran (``k_s`` already
-sent), it is planned again from a later sample.  Commands before and after
+time (``replan_lead_s``; at least 1.5 x the recent planning time + 20 ms,
+the slowest 20 % of the last 20 plans set aside, at most 1 s); the new
+sequence is spliced in at ``k_s``.  If planning overran (``k_s`` already
+sent), or the timeline changed meanwhile, it is planned again.  Commands before and after
 the splice are both within ``|u| <= u_max``, so the command never jumps by
 more than ``2 u_max``.  The splice point and the look-ahead policy are
 :mod:`flexmotion_ros.execution.splice`; this node only plans and logs.
