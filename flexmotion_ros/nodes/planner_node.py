@@ -132,10 +132,13 @@ from .parameters import (
 from .planner_goals import GoalHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
+from .planner_stops import StopHandling
 from .planner_stream import StreamGlue
 from .runner import run
 
 NODE_NAME = "flexmotion_planner"
+#: Installed segments kept for inspection (``PlannerNode.installed``).
+INSTALLED_KEPT = 32
 
 #: ``commands``: reliable and deep (10 s at 1 kHz), so that a lagging lockstep plant never loses a sample.
 COMMAND_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -151,7 +154,7 @@ LATCHED_QOS = QoSProfile(
 )
 
 
-class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
+class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
     Parameters
@@ -248,8 +251,9 @@ class PlannerNode(GoalHandling, StreamGlue, LifecycleTransitions, LifecycleNode)
         self._plan_times: deque[float] = deque(maxlen=PLAN_TIME_WINDOW)
         self._sent_at_start = 0
         self._move_requested_at = 0.0
-        #: Recently installed segments, oldest first (start index, plan): for tests and the demo.
-        self.installed: deque[Segment] = deque(maxlen=100)
+        #: Recently installed segments, oldest first (start index, plan): for tests and the demo (bounded:
+        #: each holds its plan's arrays).
+        self.installed: deque[Segment] = deque(maxlen=INSTALLED_KEPT)
 
         # a lifecycle publisher: nothing goes out unless active (the hold is sent before deactivating it)
         self.commands_publisher = self.create_lifecycle_publisher(Float64MultiArray, "commands", COMMAND_QOS)
