@@ -119,6 +119,7 @@ class StopHandling:
                 f"stopping: {out.segment.samples} samples ({out.segment.samples * self.stream.dt:.6g} s), "
                 f"at rest at {out.segment.states[-1, 0]:.9g}; from sample {out.segment.start}, "
                 f"{out.segment.start - k_req} samples after the request (look-ahead {lead})"
+                + ("; a ready stop" if "stop_lead_samples" in out.info else "")
             )
         return response
 
