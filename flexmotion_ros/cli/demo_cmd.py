@@ -40,8 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.config import load_config, read_parameter_file
+from ..core.config import load_config
 from ..core.errors import ConfigError, GoalError
+from ..core.parameter_file import read_parameter_file
 from .shipped import DEFAULT_CONFIG, find_shipped, share_directories
 
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..core.config import PlannerConfig, dump_parameters
+from ..core.config import PlannerConfig
 from ..core.errors import ModelError
 from ..core.model.builders import INPUT_KINDS, BuiltModel, chain, crane, two_mass
+from ..core.parameter_file import dump_parameters
 
 
 def _floats(text: str) -> list[float]:

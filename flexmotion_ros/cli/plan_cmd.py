@@ -9,11 +9,13 @@ import time
 
 import numpy as np
 
-from ..core.config import config_from_parameters, read_parameter_file
+from ..core.config import check_move_samples, config_from_parameters
 from ..core.errors import ConfigError, GoalError
+from ..core.methods.common import check_move_budget
 from ..core.methods.table import plan_move
 from ..core.model.boundary import motion_to_rest, rest_to_rest, state_to_rest
 from ..core.model.modal_model import check_positive
+from ..core.parameter_file import read_parameter_file
 from ..core.parameters import check_parameters, parse_parameter_value
 
 
@@ -81,6 +83,9 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     problem = problem_from_args(config, args.goal, args.initial_velocity)
     rate = None if args.rate is None else check_positive("rate_hz", args.rate, "Hz")
+    if rate is not None:  # the node's budgets: refused before planning, in microseconds
+        check_move_budget(config, problem)
+        check_move_samples(config, problem, rate)
     t0 = time.perf_counter()
     result = plan_move(config, problem, rate_hz=rate)
     plan_time = time.perf_counter() - t0

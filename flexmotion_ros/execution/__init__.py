@@ -12,6 +12,9 @@ and logging):
 * :mod:`.command_stream` -- :class:`CommandStream`, the absolute-deadline
   loop with the clock, the sleep and the publisher injected; every halt
   (stop, fault) sends the hold and says why (:class:`StreamHalt`);
+* :mod:`.requests` -- the planning thread's requests: the newest goal wins
+  (superseded goals counted), a stop cancels the goal being planned, plan-only
+  queries wait in a bounded queue;
 * :mod:`.measured_state` -- the machine's measured state: settings, the
   state vector from joint names, staleness;
 * :mod:`.summary` -- the plan's figures the planner reports;
@@ -25,6 +28,7 @@ from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
 from .jtc import HeldPiece, TrajectoryPlayer, held_pieces, sample, started
 from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
 from .replan import ReplanOutcome, ReplanPoint, ReplanStatus, replan, replan_point
+from .requests import Request, RequestKind, RequestWorker
 from .splice import (
     DEFAULT_PLAN_TIME_S,
     PLAN_TIME_FACTOR,
@@ -63,6 +67,9 @@ __all__ = [
     "HaltCause",
     "MeasuredState",
     "ReadyStop",
+    "Request",
+    "RequestKind",
+    "RequestWorker",
     "StateSettings",
     "StateSource",
     "StopPreparer",

@@ -36,7 +36,8 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.errors import GoalError
-from ..execution.measured_state import RIGID_BODY, closest
+from ..core.parameters import closest_hint
+from ..execution.measured_state import RIGID_BODY
 
 #: Prefix of ``Path.header.frame_id`` when a GetPlan request is refused.
 ERROR_PREFIX = "error: "
@@ -177,7 +178,7 @@ def trajectory_goal(msg: JointTrajectory, joint_name: str = RIGID_BODY) -> Traje
             raise GoalError(
                 "joint_trajectory.joint_names",
                 f"unknown joint {n!r}: this planner moves only {joint_name!r} (parameter joint_name)"
-                + closest(n, [joint_name]),
+                + closest_hint(n, [joint_name]),
             )
     if len(names) != 1:
         raise GoalError("joint_trajectory.joint_names", f"names {joint_name!r} {len(names)} times; give it once")

@@ -169,6 +169,14 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.0, 1e9),
         ),
         Spec(
+            "max_move_samples",
+            DEFAULTS["max_move_samples"],
+            "most command samples (>= 1) a goal's plan may need at rate_hz: a goal whose rigid-body minimum time "
+            "x rate_hz exceeds it is refused in microseconds, before planning (e.g. a goal of 1e6 m). A change "
+            "applies to the next goal.",
+            int_range=(1, 1_000_000_000),
+        ),
+        Spec(
             "publish_hold_when_idle",
             True,
             "true: keep publishing the hold command (0) at rate_hz while idle; false: the stream ends with one explicit hold sample after each move.",
@@ -191,7 +199,8 @@ def planner_specs() -> list[Spec]:
             "replan_lead_s",
             0.05,
             "smallest look-ahead (s) of a preemption or stop: the new plan starts at a sample at least this far ahead "
-            "(and at least 1.5 x the slowest recent plan + 20 ms), in [0, 60].",
+            "(and 1.5 x the recent planning time + 20 ms, the slowest 20 % of the last 20 plans set aside, at most "
+            "1 s), in [0, 60].",
             fp_range=(0.0, 60.0),
         ),
         Spec(

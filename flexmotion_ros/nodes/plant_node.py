@@ -75,7 +75,8 @@ PLANT_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, hist
 IDLE_STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
 #: Real-time event times are kept on this grid (s), so step matrices can be cached.
 TIME_QUANTUM = 1e-6
-_CACHE_LIMIT = 20000
+#: Step matrices kept for real-time event intervals (bounded: cleared when full; ~1 MB for two modes).
+_CACHE_LIMIT = 2048
 #: Silent this long (us) after a cut-off, the zero force is settled into the state
 #: (a busy executor has been measured handing commands over > 1 s late).
 SETTLE_US = 10_000_000
@@ -123,6 +124,7 @@ class PlantNode(Node):
         self._origin_ns = time.time_ns()
         self._t_event = 0
         self._last_command_at: int | None = None
+        self._timeout_reported_for = -math.inf  # the cut-off (us) last counted as a timeout
         self.joint_names = ["rigid_body"] + list(cfg.model.names)
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
@@ -221,7 +223,7 @@ class PlantNode(Node):
             arrived, u = self._events.popleft()
             arrived = max(arrived, self._t_event)  # in order; never step back
             if arrived > self._cutoff() and self.u != 0.0:
-                self._note_timeout()
+                self._note_timeout()  # once per cut-off: the timer may have reported it already
             self.x_event = self._state_at(arrived)
             self._t_event = arrived
             self.u = u
@@ -235,9 +237,18 @@ class PlantNode(Node):
             self._t_event = now
             self.u = 0.0
 
-    def _note_timeout(self) -> None:
+    def _note_timeout(self) -> bool:
+        """Count and log the cut-off of the held command once (when it happens, or when a late command shows it).
+
+        Returns True if this call reported it.
+        """
+        cutoff = self._cutoff()
+        if cutoff == self._timeout_reported_for:
+            return False
+        self._timeout_reported_for = cutoff
         self.timeouts += 1
         self.get_logger().warning(f"no command for {self.cfg.command_timeout:g} s: zero force from then on")
+        return True
 
     def _now(self) -> int:
         """System clock since start-up, in TIME_QUANTUM units."""
@@ -267,7 +278,12 @@ class PlantNode(Node):
             now = self._now()
             self._integrate_events(now)
             self.x = self._state_at(now)
-            self._publish(self.u if now <= self._cutoff() else 0.0)
+            held = now <= self._cutoff()
+            self._publish(self.u if held else 0.0)
+            # the force is cut now: say so now (issue 16: the counter and the warning came 10 s later)
+            reported = not held and self.u != 0.0 and self._note_timeout()
+        if reported:
+            self.publish_diagnostics()
 
     def _on_idle_timer(self) -> None:
         """Lockstep: no command for a whole period, publish the (unchanged) state as a best-effort heartbeat."""
