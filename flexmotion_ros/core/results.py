@@ -43,6 +43,9 @@ class SolverPath(_StrEnum):
     FULL = "full"
     #: Guess, switch-time Newton, certify (:mod:`~flexmotion_ros.core.time_optimal.structure_guess`).
     FAST = "fast"
+    #: A cluster of switches below rounding: switch times from the final state
+    #: alone, optimal within the gap to the proved lower bound.
+    CLUSTER = "cluster"
 
 
 class ProofKind(_StrEnum):

@@ -74,7 +74,7 @@ def plan_robust_time_optimal_zoh(
             near[min(int(ts / dt), K - 1)] = True
         width = 2
         while True:
-            free = np.convolve(near.astype(float), np.ones(2 * width + 1), mode="same") > 0.0
+            free = _dilate(near, width)
             free[K - width :] = True
             F = np.flatnonzero(free)
             rhs = w - G[~free].T @ fixed_level[~free]
@@ -98,3 +98,17 @@ def plan_robust_time_optimal_zoh(
         except SolverError:  # misses the nominal or the augmented target: one more sample
             continue
     raise SolverError(f"robust time-optimal: no sampled sequence at {rate_hz:g} Hz found; nothing is returned")
+
+
+def _dilate(mask: np.ndarray, width: int) -> np.ndarray:
+    """``mask`` grown by ``width`` samples on each side, same length.
+
+    (``np.convolve(..., mode="same")`` returns ``max(K, 2 width + 1)``
+    entries: once the windows outgrew a short move, the mask no longer fitted.)
+    """
+    K = mask.size
+    idx = np.flatnonzero(mask)
+    edges = np.zeros(K + 1, dtype=int)
+    np.add.at(edges, np.clip(idx - width, 0, K), 1)
+    np.add.at(edges, np.clip(idx + width + 1, 0, K), -1)
+    return np.cumsum(edges[:K]) > 0

@@ -156,7 +156,9 @@ def _least_norm_solver(GS: np.ndarray):
     rank cut-off is lstsq's default: ``eps * max(GS.shape) * s_max``.
     """
     Q, R = qr(GS, mode="economic", check_finite=False)
-    Ur, sv, Vt = np.linalg.svd(R)
+    # thin SVD: with fewer samples than states (a move of a few samples) R is
+    # wide, and the full SVD's Vt would have more rows than singular values
+    Ur, sv, Vt = np.linalg.svd(R, full_matrices=False)
     keep = sv > np.finfo(float).eps * max(GS.shape) * (sv[0] if sv.size else 0.0)
     QU = (Q @ Ur)[:, keep]
     inv = 1.0 / sv[keep]

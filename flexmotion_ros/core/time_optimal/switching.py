@@ -18,6 +18,8 @@ from typing import Protocol
 
 import numpy as np
 
+from ..errors import SolverError
+
 
 class SwitchingSystem(Protocol):
     """What the planners need of a linear system (see :class:`ModalResponse`)."""
@@ -40,6 +42,9 @@ class SwitchingSystem(Protocol):
 #: Grid points per half period of the fastest damped mode.
 POINTS_PER_HALF_PERIOD = 8
 MIN_GRID_POINTS = 64
+#: Refuse a grid longer than this (a move of millions of periods: minutes of
+#: work and gigabytes; the budgets of ``plan_move`` refuse such goals first).
+MAX_GRID_POINTS = 20_000_000
 
 
 def fastest_frequency(system) -> float:
@@ -55,6 +60,11 @@ def sample_grid(system, T: float, density: float = 1.0) -> np.ndarray:
     if wmax > 0.0:
         n = max(n, math.ceil(T * wmax / math.pi * POINTS_PER_HALF_PERIOD))
     n = math.ceil(n * density)
+    if not n <= MAX_GRID_POINTS:  # also NaN/inf: a move no budget check stopped (direct core calls)
+        raise SolverError(
+            f"the move spans {T:.4g} s, about {T * wmax / math.pi:.3g} half periods of the fastest mode "
+            f"({wmax:.4g} rad/s): over the work budget of the time-optimal solver; move less far"
+        )
     return np.linspace(0.0, T, n + 1)
 
 
