@@ -83,6 +83,15 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     nF = F.size
     c_fix = (G[fixed] * signs[fixed, None]).sum(axis=0)
     A_eq = np.column_stack([G[F].T, -w])
+    b_eq = -c_fix
+    # equilibrate the rows (one per state): HiGHS's feasibility tolerance is
+    # absolute, and a row of 1e-12 (u_max 1e12: every sample moves a state by
+    # far more than the move) would be met by any point.  Row scaling leaves
+    # the solution unchanged; the multipliers scale back below.
+    rows = np.maximum(np.max(np.abs(A_eq), axis=1), np.abs(b_eq))
+    rows = np.where(rows > 0.0, rows, 1.0)
+    A_eq = A_eq / rows[:, None]
+    b_eq = b_eq / rows
     cost = np.zeros(nF + 1)
     cost[-1] = -1.0
     bounds = np.empty((nF + 1, 2))
@@ -92,9 +101,9 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     # n dense rows and box bounds: HiGHS's presolve finds nothing to remove and
     # costs ~30 % of the solve; it runs only if the dual simplex alone reports
     # a numerical difficulty (status 4)
-    res = linprog(cost, A_eq=A_eq, b_eq=-c_fix, bounds=bounds, method="highs-ds", options={"presolve": False})
+    res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs-ds", options={"presolve": False})
     if res.status == 4:
-        res = linprog(cost, A_eq=A_eq, b_eq=-c_fix, bounds=bounds, method="highs")
+        res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status == 3:  # unbounded s (t* = 0 numerically): the min-t form decides
         return _solve_peak_lp_rows(G, w, signs, free)
     if res.status != 0:
@@ -105,7 +114,7 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     t = 1.0 / s_star
     u = signs * t
     u[F] = res.x[:nF] * t
-    return u, t, t * np.asarray(res.eqlin.marginals, dtype=float)
+    return u, t, t * np.asarray(res.eqlin.marginals, dtype=float) / rows
 
 
 def _solve_peak_lp_rows(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
@@ -233,7 +242,9 @@ def plan_time_optimal_zoh(
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
     # signs of the continuous optimum at the sample midpoints, aligned at the end
-    scale = move.error_scale(T)
+    # the scale of the sampled move (K_lo dt >= T): for a move far shorter than
+    # a sample (u_max 1e12) the continuous T would leave the LP badly scaled
+    scale = move.error_scale(K_lo * dt)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
     if not np.any(nu):
@@ -270,7 +281,14 @@ def plan_time_optimal_zoh(
                 proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
                 K += 1
                 continue
-            raise SolverError(f"sampled planner: linear program failed at {K} samples")
+            # the LP failed numerically (as few samples as states: a square,
+            # ill-conditioned system); its least-norm solution, if within the
+            # bound, goes to the exact checks; otherwise one more sample
+            peak = float(np.max(np.abs(u_ls)))
+            if not peak <= um:
+                K += 1
+                continue
+            result = (u_ls, peak, -math.inf, nu)
         u, t_star, bound, nu_lp = result
         if t_star <= um * (1.0 + LP_RTOL):  # the exact correction and checks decide
             u_in = u * (um / max(t_star, um))
