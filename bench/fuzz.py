@@ -176,7 +176,9 @@ def check_plan(problem: MoveProblem, result) -> str | None:
             return "continuous: |u| > u_max"
         if cont.duration > 0.0:
             br = np.concatenate([[0.0], np.asarray(cont.switch_times, float), [cont.duration]])
-            X = _pieces_final(A, B, problem.x0, np.diff(br), lv)
+            # pieces cut into parts of at most T/200: the excursion along the motion, not only at switches
+            parts = np.maximum(1, np.ceil(np.diff(br) / (cont.duration / 200.0))).astype(int)
+            X = _pieces_final(A, B, problem.x0, np.repeat(np.diff(br) / parts, parts), np.repeat(lv, parts))
             bad = judge(X, "continuous")
             if bad:
                 return bad

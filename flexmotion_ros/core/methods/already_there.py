@@ -14,6 +14,12 @@ actuator moves each state in ``dt``).  So "already there" means exactly what
 "arrived" means for any other plan of that length: nothing is loosened.  The
 resolution is the planning rate, or ``config.rate_hz`` (the node's) when no
 rate is given.
+
+A goal that differs from the state by rounding only (at most
+:data:`~flexmotion_ros.core.tolerances.AT_REST_ULPS` units in the last place
+of the larger of the two, state by state: a position of 2 m re-sent as the
+goal after a round trip through a message) is also already there, at any
+rate: the state is not known better than that.
 """
 
 from __future__ import annotations
@@ -24,9 +30,11 @@ import numpy as np
 
 from ..config import PlannerConfig
 from ..errors import SolverError
-from ..results import BangBangProfile, Certificate, PlanResult, SolverPath
+from ..results import BangBangProfile, Certificate, PlanResult, SampledProfile, SolverPath
 from ..sampled.check import verified_samples
+from ..simulation.error_scale import relative_final_state_error
 from ..simulation.prepared import PreparedMove
+from ..tolerances import AT_REST_ULPS
 from .common import planning_rate
 
 
@@ -54,15 +62,39 @@ def plan_already_there(config: PlannerConfig, move: PreparedMove, rate_hz: float
     t0 = time.perf_counter()
     rate, _ = planning_rate(config, rate_hz)
     dt = 1.0 / rate
-    try:
-        hold = verified_samples(move, np.empty(0), dt, config.method, True, 0, None, {"already_there": True}, t0)
-    except SolverError:
-        return None
-    message = (
-        f"already there: every state within {hold.final_state_error_relative:.1e} (tolerance FINAL_STATE_RTOL) "
-        f"of the target's rest state, relative to one sample's reach at {rate:g} Hz"
-    )
     problem = move.problem
+    x0 = np.asarray(problem.x0, dtype=float)
+    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
+    dev, size = x0 - target, np.maximum(np.abs(x0), np.abs(target))
+    if problem.target is None:
+        dev, size = dev[1:], size[1:]
+    extra = {"already_there": True}
+    if np.all(np.abs(dev) <= AT_REST_ULPS * np.finfo(float).eps * size):
+        # the goal and the state differ by rounding only: the state is not known better than that
+        scale = move.error_scale(dt)
+        hold = SampledProfile(
+            problem=problem,
+            commands=np.empty(0),
+            dt=dt,
+            states=x0[None, :].copy(),
+            final_state_error=float(np.max(np.abs(dev), initial=0.0)),
+            final_state_error_relative=relative_final_state_error(dev, scale),
+            minimal=True,
+            lower_bound_samples=0,
+            solve_time_s=time.perf_counter() - t0,
+            method=config.method,
+            extra=extra,
+        )
+        message = f"already there: the goal differs from the state by rounding only (<= {AT_REST_ULPS} ulps)"
+    else:
+        try:
+            hold = verified_samples(move, np.empty(0), dt, config.method, True, 0, None, extra, t0)
+        except SolverError:
+            return None
+        message = (
+            f"already there: every state within {hold.final_state_error_relative:.1e} (tolerance "
+            f"FINAL_STATE_RTOL) of the target's rest state, relative to one sample's reach at {rate:g} Hz"
+        )
     certificate = Certificate(
         passed=True,
         costate_initial=np.zeros(move.response.n),

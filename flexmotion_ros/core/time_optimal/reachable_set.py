@@ -229,6 +229,7 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
         nuh = nuh / float(nuh @ w)
     Z = null_basis(w)
     S = Gm @ nuh
+    GZ = Gm @ Z  # the search space's columns on the grid: one product per solve, not per step
     # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve)
     eps = eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
 
@@ -238,8 +239,7 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     f = value(S)
     for _ in range(max_iter):
         sq = np.sqrt(S * S + eps * eps)
-        g = Z.T @ (um * (Gm.T @ (wq * S / sq)))
-        GZ = Gm @ Z
+        g = um * (GZ.T @ (wq * S / sq))
         Hr = um * ((GZ.T * (wq * eps * eps / sq**3)) @ GZ)
         try:
             dy = -np.linalg.solve(Hr, g)
@@ -250,7 +250,7 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
             break
         t = 1.0
         step = Z @ dy
-        dS = Gm @ step
+        dS = GZ @ dy
         for _ in range(40):
             fc = value(S + t * dS)
             if fc <= f - 0.25 * t * dec:
