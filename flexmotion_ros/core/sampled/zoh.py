@@ -231,9 +231,6 @@ def plan_time_optimal_zoh(
     problem = move.problem
     if continuous is None:
         continuous = move.continuous if move.continuous is not None else plan_time_optimal(move)
-    system = move.response
-    x0 = move.x0
-    um = problem.u_max
     T = continuous.duration
     if T == 0.0:
         states = simulate_samples(problem.model, problem.x0, np.empty(0), dt)
@@ -241,17 +238,65 @@ def plan_time_optimal_zoh(
     if T / dt > 5e6:
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
-    # signs of the continuous optimum at the sample midpoints, aligned at the end
     # the scale of the sampled move (K_lo dt >= T): for a move far shorter than
     # a sample (u_max 1e12) the continuous T would leave the LP badly scaled
     scale = move.error_scale(K_lo * dt)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
-    if not np.any(nu):
+    found = fewest_samples(move, dt, K_lo, K_lo + MAX_EXTRA_SAMPLES, nu, continuous, t0)
+    if found is None:
+        raise SolverError(
+            f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
+        )
+    return found
+
+
+def fewest_samples(
+    move: PreparedMove,
+    dt: float,
+    K_lo: int,
+    K_max: int,
+    nu: np.ndarray | None,
+    continuous: BangBangProfile | None,
+    t0: float,
+) -> SampledProfile | None:
+    """The fewest samples in ``[K_lo, K_max]`` reaching rest exactly, or None if none of them does.
+
+    Parameters
+    ----------
+    move : PreparedMove
+        The move.
+    dt : float
+        Sample period (s).
+    K_lo : int
+        A proved lower bound on the sample count (``ceil(T / dt)`` for a
+        proved lower bound ``T`` on the continuous optimum, s).
+    K_max : int
+        The last count tried.
+    nu : ndarray or None
+        A dual direction (scaled by ``move.error_scale(K_lo dt)``) whose
+        switching-function signs guess the saturated samples; None: none known
+        (every sample is free once the windows have grown).
+    continuous : BangBangProfile or None
+        Recorded in the result.
+    t0 : float
+        ``time.perf_counter()`` at the start of planning (s).
+
+    Returns
+    -------
+    SampledProfile or None
+        ``minimal`` when every count below it is proved infeasible (the
+        continuous bound, or a weak-duality bound above ``u_max``).
+    """
+    system = move.response
+    x0 = move.x0
+    um = move.u_max
+    scale = move.error_scale(K_lo * dt)
+    if nu is not None and not np.any(nu):
         nu = None
-    proved_infeasible_below = K_lo  # every K < K_lo is infeasible (continuous bound)
+    proved_infeasible_below = K_lo  # every K < K_lo is infeasible (the given bound)
     K = K_lo
-    while K <= K_lo + MAX_EXTRA_SAMPLES:
+    while K <= K_max:
         G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
         w = -system.expm_x(K * dt, x0) / scale
         S = G @ nu if nu is not None else np.ones(K)
@@ -297,16 +342,17 @@ def plan_time_optimal_zoh(
             for cand in (correct_exactly(G, w, u_in, um), np.clip(u_in, -um, um)):
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
-                    return finish_sampled(
-                        move, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
-                    )
+                    try:
+                        return finish_sampled(
+                            move, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
+                        )
+                    except SolverError:  # the exact check decides: one more sample
+                        pass
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
         K += 1
-    raise SolverError(
-        f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
-    )
+    return None
 
 
 def finish_sampled(
