@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from scipy import sparse
@@ -289,15 +290,60 @@ def fewest_samples(
         continuous bound, or a weak-duality bound above ``u_max``).
     """
     system = move.response
-    x0 = move.x0
-    um = move.u_max
     scale = move.error_scale(K_lo * dt)
+
+    def finish(cmds: np.ndarray, minimal: bool, lower: int) -> SampledProfile:
+        return finish_sampled(move, cmds, dt, continuous, minimal, lower, t0)
+
+    return search_samples(system, move.x0, move.u_max, scale, dt, K_lo, K_max, nu, finish)
+
+
+def search_samples(
+    system,
+    x0: np.ndarray,
+    u_max: float,
+    scale: np.ndarray,
+    dt: float,
+    K_lo: int,
+    K_max: int,
+    nu: np.ndarray | None,
+    finish: Callable[[np.ndarray, bool, int], SampledProfile],
+) -> SampledProfile | None:
+    """The fewest-samples search of :func:`fewest_samples` for any linear system (e.g. the robust augmented one).
+
+    Parameters
+    ----------
+    system : ModalResponse or compatible
+        ``input_integral``, ``expm_x`` and ``expm_x_many`` of the system the
+        sequence must bring to its origin.
+    x0 : ndarray
+        Its shifted initial state.
+    u_max : float
+        Bound on every command (N).
+    scale : ndarray
+        Per-state unit of the linear programs (state units).
+    dt : float
+        Sample period (s).
+    K_lo, K_max : int
+        Proved lower bound on the count; last count tried.
+    nu : ndarray or None
+        Scaled dual direction guessing the saturated samples' signs.
+    finish : callable
+        ``finish(commands, minimal, lower_bound) -> SampledProfile``: the
+        exact checks; a :class:`SolverError` from it tries one more sample.
+
+    The sample vectors ``g_m`` (``m`` samples to go) do not depend on the
+    count, so they are built once for ``K_max`` and sliced: the work per
+    count is the linear program alone, not a rebuild of ``K x n`` responses.
+    """
+    um = u_max
+    G_all = sample_vectors(system, K_max, dt) / scale  # rows: m = samples to go
     if nu is not None and not np.any(nu):
         nu = None
     proved_infeasible_below = K_lo  # every K < K_lo is infeasible (the given bound)
     K = K_lo
     while K <= K_max:
-        G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+        G = G_all[:K]
         w = -system.expm_x(K * dt, x0) / scale
         S = G @ nu if nu is not None else np.ones(K)
         signs = np.where(S >= 0.0, 1.0, -1.0)
@@ -343,9 +389,7 @@ def fewest_samples(
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
                     try:
-                        return finish_sampled(
-                            move, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
-                        )
+                        return finish(cmds, K == proved_infeasible_below, proved_infeasible_below)
                     except SolverError:  # the exact check decides: one more sample
                         pass
         if bound > um * (1.0 + BOUND_RTOL):
