@@ -70,6 +70,8 @@ __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_t
 
 #: Smoothing levels (relative to the mean |S|) of the warm-start stage.
 SMOOTHING = (0.02, 0.002)
+#: Steps on the duration per smoothing level.
+SMOOTH_OUTER = 12
 #: The fast path's second guess, if the first fails: smoothed inner problems at
 #: this finer level, from the warm start (sharper near-tangencies of ``S``:
 #: short blips of the optimum show).  0: no second guess.
@@ -101,7 +103,7 @@ def _smoothed_start(
     T = max(T_init, T_low, 1e-300)
     for eps in levels:
         lo, hi = T_low, math.inf
-        for _ in range(12):
+        for _ in range(SMOOTH_OUTER):
             nuh, m, dm = inner_smooth(sh, T, nuh, eps)
             if m > 0.0 and abs(math.log(m)) < 1e-3:
                 break
