@@ -203,19 +203,22 @@ class ModalResponse:
     def _trig_basis(self, tau: np.ndarray) -> np.ndarray:
         """``[e^{-sig tau} sin(wd tau), e^{-sig tau} cos(wd tau)]`` per mode, shape ``(len, 2N)``.
 
-        The last large array is cached by identity: the planners evaluate the
-        switching function on one grid many times while ``T`` is fixed.
+        Cached by identity for read-only arrays (the planners' grids,
+        :func:`~flexmotion_ros.core.time_optimal.switching.sample_grid`), the
+        last two: the planners evaluate the switching function on one grid
+        many times while ``T`` is fixed.  Other arrays (subsets, bisection
+        midpoints) are not cached, so they cannot evict a grid's basis.
         """
-        if tau is self._basis_tau:
-            return self._basis_val
+        cache = self.__dict__.setdefault("_basis_cache", [])
+        for key, val in cache:
+            if key is tau:
+                return val
         E, C, Sn = self._mode_trig(tau)
         val = np.concatenate([E * Sn, E * C], axis=1)
-        if tau.size >= 32:
-            self._basis_tau, self._basis_val = tau, val
+        if tau.size >= 32 and not tau.flags.writeable:
+            cache.insert(0, (tau, val))
+            del cache[2:]
         return val
-
-    _basis_tau: np.ndarray | None = None
-    _basis_val: np.ndarray | None = None
 
     def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False, order: int | None = None):
         """``S(tau) = nu^T e^{A tau} B`` and its derivatives in ``tau``.
