@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError, GoalError
+from ..errors import ConfigError, GoalError, ModelError
 from ..model.boundary import MoveProblem
 from ..parameters import option
 from ..results import SampledProfile
@@ -23,6 +23,12 @@ def required_option(config: PlannerConfig, name: str, method: str, allowed: str 
         allowed = allowed or option(name).allowed
         raise ConfigError(name, f"required by method {method}: set '{name}' ({allowed}) in the parameter file")
     return config.options[name]
+
+
+#: Largest ``|c| T`` (viscous relaxations of the rigid body within a move)
+#: planned: the final velocity's rounding grows like ``eps |c| T`` (measured:
+#: 3.5e-9 relative at ``|c| T = 2.3e8``, 1e-10 at ``7e7``).
+MAX_VISCOUS_SPAN = 3e7
 
 
 def check_plannable(config: PlannerConfig, rate_hz: float | None = None) -> float:
@@ -70,6 +76,8 @@ def check_move_budget(config: PlannerConfig, problem: MoveProblem, rate_hz: floa
     moves that certainly exceed a budget (e.g. ``--goal 1e300``):
 
     * ``config.max_move_duration_s`` (s);
+    * ``|c| T`` at most :data:`MAX_VISCOUS_SPAN` (a viscous term this stiff
+      cannot be brought to rest in double precision);
     * with ``rate_hz``: :data:`~flexmotion_ros.core.tolerances.MAX_SAMPLES`
       commands (every sampled planner's horizon) and :func:`check_plannable`.
 
@@ -86,6 +94,14 @@ def check_move_budget(config: PlannerConfig, problem: MoveProblem, rate_hz: floa
             "goal",
             f"the move needs at least {T:.4g} s (rigid-body minimum time), over the budget max_move_duration_s = "
             f"{config.max_move_duration_s:g} s; move less far or raise max_move_duration_s",
+        )
+    stiff = abs(problem.model.c) * T
+    if stiff > MAX_VISCOUS_SPAN:
+        raise ModelError(
+            "model.c",
+            f"the rigid body's velocity relaxes in 1/|c| = {1.0 / abs(problem.model.c):.3g} s, {stiff:.3g} times "
+            f"within the move's {T:.4g} s (over {MAX_VISCOUS_SPAN:.0e}): double precision cannot bring it exactly "
+            "to rest (error ~1e-16 |c| T); use a smaller |c| or a shorter move",
         )
     if rate_hz:
         rate = check_plannable(config, rate_hz)
