@@ -11,8 +11,8 @@ from scipy.linalg import expm
 
 from flexmotion_ros.core import (
     ModalModel,
-    chain,
     PiecewiseConstant,
+    chain,
     final_state,
     modal_amplitudes,
     simulate,
