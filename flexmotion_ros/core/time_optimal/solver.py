@@ -39,7 +39,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -64,6 +64,7 @@ from .reachable_set import (
 )
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
+from .structure_search import notch_candidates
 from .switch_newton import primal_newton, refine_switches, split_candidates, structure_newton
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
@@ -88,6 +89,12 @@ FAST_PATH = True
 #: of a machine tuned near a multiple of a period, whose notch is too narrow
 #: for the switching function to show.  Accepted only within ``GAP_RTOL``.
 NEAR_RIGID = 1e-5
+#: Evaluations of the exact shooting map after which the full solver stops
+#: and the bounded structure search (:func:`_structure_fallback`) takes over:
+#: the work of a plan is bounded whatever the model (measured on the random
+#: models of ``bench/fuzz.py`` and the property tests: certified answers needed
+#: up to 191, a stop of a 937-unit motion with 316 switches).
+MAX_EVALUATIONS = 400
 
 
 def _smoothed_start(
@@ -147,6 +154,8 @@ def _solve(
     lo, hi = T_low, math.inf
     tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
     for _ in range(60):
+        if sh.evaluations > MAX_EVALUATIONS:  # bounded work: the structure search takes over
+            return nuh, T, e.roots, e.signs, math.inf
         nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
         if e.roots.size > MAX_SWITCHES:
             raise SolverError(
@@ -166,8 +175,10 @@ def _solve(
         if gap <= 1e-11:
             break
         T, lo, hi = bracketed_step(T, m, dm, lo, hi)
+    if sh.evaluations > MAX_EVALUATIONS:
+        return nuh, T, e.roots, e.signs, math.inf
     # last resort: full-accuracy nested iteration, then the joint Newton polish
-    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11)
+    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11, max_outer=20)
     nuh = rescale(sh, nuh, T)
     nuh, T, e, r = polish(sh, nuh, T)
     if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
@@ -282,6 +293,8 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove) -> BangBangProfile:
         profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
     except SolverError:
         profile = _cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low)
+        if profile is None:
+            profile = _structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low)
         if profile is None:
             raise
     profile.extra.setdefault("solver_path", SolverPath.FULL)
@@ -413,6 +426,52 @@ def _cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low) -> B
             profile.extra["solver_path"] = SolverPath.CLUSTER
             return profile
     return None
+
+
+def _structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low) -> BangBangProfile | None:
+    """The bounded structure search (:mod:`.structure_search`) when the co-state iterations missed the target.
+
+    Candidates reaching the target are tried shortest first: the switch-time
+    Newton with the co-state from there, then the exact simulation and the
+    certificate.  The first certified one is returned.  If none certifies
+    (a notch whose switching-function sign is below rounding, and too far
+    from the rigid body's bound for the gap to prove it), the shortest one
+    that passes the exact final-state check is returned, not certified, its
+    certificate message stating the proved bound it has: ``T`` is within
+    ``(T - T_low) / T`` of the rigid body's minimum time.
+    """
+    rigid = rigid_profile(problem.model, problem.u_max, sh.x0, problem.include_position)
+    bases = [(roots, float(signs[0]))]
+    if rigid.switch_times.size or rigid.duration > 0.0:
+        bases.append((np.sort(rigid.duration - rigid.switch_times), float(np.sign(rigid.levels[-1]))))
+    best = None  # the shortest candidate that reaches the target, if none certifies
+    for T_c, tau, sign0 in notch_candidates(sh, bases, T):
+        signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+        ok, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
+        if ok:
+            try:
+                profile = _assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
+            except SolverError:
+                profile = None
+            if profile is not None and profile.certificate.passed:
+                profile.extra["solver_path"] = SolverPath.SEARCH
+                return profile
+        if best is None or T_c < best.duration:
+            try:
+                best = _assemble(problem, system, nuh / sh.s, T_c, tau, signs_c, t0, sh.evaluations, T_low)
+            except SolverError:
+                pass
+    if best is None:
+        return None
+    gap = (best.duration - T_low) / best.duration
+    cert = replace(
+        best.certificate,
+        message=f"not proved optimal: within {gap:.1e} (relative) of the proved lower bound {T_low!r} s "
+        f"(the rigid body's minimum time); sign test: {best.certificate.message}",
+    )
+    profile = replace(best, certificate=cert)
+    profile.extra["solver_path"] = SolverPath.SEARCH
+    return profile
 
 
 def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:

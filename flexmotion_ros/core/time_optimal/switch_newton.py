@@ -232,7 +232,7 @@ def primal_newton(sh: Shooting, roots: np.ndarray, sign0: float, T: float, max_i
         J[:, L] = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
         step = np.linalg.lstsq(J, -F, rcond=None)[0]
         t = 1.0
-        for _ in range(30):
+        for _ in range(12):
             tau_c, T_c = tau + t * step[:L], T + t * step[L]
             if valid(tau_c, T_c):
                 F_c, eAx_c = final(tau_c, T_c)
