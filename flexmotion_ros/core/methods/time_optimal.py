@@ -1,7 +1,7 @@
 """Method ``time_optimal`` (the default): the certified bang-bang optimum and its exact ZOH sequence.
 
-A move of a few samples (a stop requested just before a move ends, a tiny
-correction) is planned sampled-first: its continuous optimum lives on a
+A move of a few samples whose fastest mode barely turns over it (a stop
+requested just before a move ends, a tiny correction) is planned sampled-first: its continuous optimum lives on a
 time scale far below a sample, where the switching function is a
 near-polynomial small difference of large terms (seconds of work for the
 continuous solver, and nothing a node streams), while the fewest-samples
@@ -25,6 +25,9 @@ from ..time_optimal.solver import plan_time_optimal
 
 #: A move whose rigid-body lower bound is at most this many samples is planned sampled-first.
 SHORT_MOVE_SAMPLES = 64
+#: ... and its fastest mode turns by at most this much (rad) over that bound: below it the
+#: switching function is a near-polynomial, the continuous solver's ill-conditioned regime.
+SHORT_MOVE_PHASE = 2.0
 #: ... trying this many sample counts above the bound before the continuous solver is asked.
 SHORT_MOVE_EXTRA = 48
 
@@ -48,7 +51,8 @@ def _short_move(move: PreparedMove, rate_hz: float) -> PlanResult | None:
     problem = move.problem
     T_rigid = rigid_time(problem.model, problem.u_max, move.x0, problem.include_position)
     K_lo = max(1, math.ceil(T_rigid / dt * (1.0 - 1e-12)))
-    if K_lo > SHORT_MOVE_SAMPLES:
+    wmax = max(problem.model.omega, default=0.0)
+    if K_lo > SHORT_MOVE_SAMPLES or wmax * T_rigid > SHORT_MOVE_PHASE:
         return None
     sampled = fewest_samples(move, dt, K_lo, K_lo + SHORT_MOVE_EXTRA, None, None, t0)
     if sampled is None:

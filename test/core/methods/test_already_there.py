@@ -119,3 +119,21 @@ def test_tiny_real_moves_are_planned_exactly(path, goal):
         result = plan_move(config, problem, 200.0)
         assert np.max(np.abs(result.sampled.commands), initial=0.0) <= config.u_max
         assert sampled_final_error(problem, result.sampled.commands, result.sampled.dt, reach=True) <= 1e-8
+
+
+@pytest.mark.parametrize("path", CONFIGS, ids=[p.stem for p in CONFIGS])
+def test_a_stop_just_before_a_move_ends_is_planned_exactly(path):
+    """A stop from 1..30 samples before the end of a move (issue 16.1: 0.25-2.5 s and one refusal on 4d66c99).
+
+    Planned sampled-first when the remaining move is a few samples: the count
+    is proved fewest (``minimal``); each sequence checked by our own expm.
+    """
+    config = config_for(path, "time_optimal")
+    model = config.model
+    move = plan_move(config, state_to_rest(model, config.u_max, np.zeros(model.n_states), 0.5), 200.0).sampled
+    for back in (1, 3, 5, 10, 30):
+        stop = state_to_rest(model, config.u_max, move.states[move.samples - back], None)
+        s = plan_move(config, stop, 200.0).sampled
+        assert s.samples <= back and s.minimal
+        assert np.max(np.abs(s.commands), initial=0.0) <= config.u_max
+        assert sampled_final_error(stop, s.commands, s.dt, reach=True) <= 1e-8
