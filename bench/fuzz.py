@@ -304,6 +304,16 @@ def report(method: str, tally: Tally, show: int) -> None:
         for o, c in tally.outcomes:
             if o.kind in ("crash", "hang", "check failed"):
                 print(f"  {o.kind} case {c.index}: {c.describe()}")
+        refused = [(o, c) for o, c in tally.outcomes if o.kind == "refusal (solver)"]
+        if refused:
+            print("solver refusals (case: modes, moving start, time):")
+            print(
+                "  "
+                + ", ".join(
+                    f"{c.index}: N={c.model.n_modes} {'moving' if c.moving else 'rest'} {o.seconds:.2f} s"
+                    for o, c in refused[:40]
+                )
+            )
 
 
 def main() -> None:
@@ -316,7 +326,8 @@ def main() -> None:
     ap.add_argument("--max-modes", type=int, default=8)
     ap.add_argument("--first", type=int, default=0, help="index of the first case")
     ap.add_argument("--only", type=int, default=None, help="run case I only")
-    ap.add_argument("--show", type=int, default=0, help="print the N slowest cases and every crash")
+    ap.add_argument("--show", type=int, default=0, help="print the N slowest cases, every crash and solver refusal")
+    ap.add_argument("--modes-at-most", type=int, default=None, help="run only the cases with at most this many modes")
     args = ap.parse_args()
     methods = list(METHODS) if args.methods == "all" else [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
@@ -335,6 +346,8 @@ def main() -> None:
         tally = Tally()
         for i in indices:
             case = draw_case(args.seed, i, args.max_modes)
+            if args.modes_at_most is not None and case.model.n_modes > args.modes_at_most:
+                continue
             tally.add(run_case(method, case, args.rate, args.timeout), case)
         report(method, tally, args.show)
     print(f"\n# wall time {time.perf_counter() - start:.1f} s")

@@ -136,8 +136,10 @@ def insensitivity(
         end = span[1] if direction > 0 else span[0]
         n = int(abs(end - nominal) / step)
         inside = nominal
-        for start in range(1, n + 1, 256):  # chunks: the edge is usually near
-            grid = nominal + direction * step * np.arange(start, min(start + 256, n + 1))
+        start, size = 1, 16
+        while start <= n:  # growing chunks: the edge is usually near, and a long command costs per ratio
+            grid = nominal + direction * step * np.arange(start, min(start + size, n + 1))
+            start, size = start + size, min(2 * size, 256)
             V = np.asarray(vibration(grid))
             out = np.flatnonzero(V > lim)
             if out.size:
