@@ -46,8 +46,8 @@ class SolverPath(_StrEnum):
     #: A cluster of switches below rounding: switch times from the final state
     #: alone, optimal within the gap to the proved lower bound.
     CLUSTER = "cluster"
-    #: The bounded structure search (a notch added to a known structure, final
-    #: state alone), after the co-state iterations missed the target.
+    #: The bounded structure search (:mod:`~flexmotion_ros.core.time_optimal.fallbacks`: a
+    #: notch added to a known structure, final state alone), after the co-state iterations missed.
     SEARCH = "search"
 
 

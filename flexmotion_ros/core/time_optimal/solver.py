@@ -39,7 +39,7 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -50,8 +50,9 @@ from ..simulation.error_scale import relative_final_state_error
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
-from ..tolerances import AT_REST, FINAL_STATE_RTOL, GAP_RTOL, MAX_SWITCHES, POLISH_TOL
+from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
 from .certificate import certify
+from .fallbacks import cluster_fallback, structure_fallback
 from .reachable_set import (
     Shooting,
     bracketed_step,
@@ -64,8 +65,7 @@ from .reachable_set import (
 )
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
-from .structure_search import notch_candidates
-from .switch_newton import primal_newton, refine_switches, split_candidates, structure_newton
+from .switch_newton import structure_newton
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
 
@@ -274,7 +274,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove) -> BangBangProfile:
         sh = Shooting(system, x0, um, T_low)
         roots = np.sort(T_low - rigid.switch_times)
         signs = np.sign(rigid.levels[::-1])
-        profile = _cluster_fallback(problem, system, sh, nu * sh.s, T_low, roots, signs, t0, T_low)
+        profile = cluster_fallback(problem, system, sh, nu * sh.s, T_low, roots, signs, t0, T_low, _assemble)
         if profile is not None:
             return profile
     # a first guess: the rigid time plus a quarter period of the slowest mode
@@ -292,9 +292,9 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove) -> BangBangProfile:
     try:
         profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
     except SolverError:
-        profile = _cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low)
+        profile = cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, _assemble)
         if profile is None:
-            profile = _structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low)
+            profile = structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, _assemble)
         if profile is None:
             raise
     profile.extra.setdefault("solver_path", SolverPath.FULL)
@@ -386,94 +386,6 @@ def _fast_path(
     return profile, None
 
 
-def _cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low) -> BangBangProfile | None:
-    """A switch split into a notch below rounding, solved on the final state alone, certified by the gap.
-
-    When the co-state iterations end on a structure that misses the target
-    (the final-state error is real, measured by the exact simulation) while
-    ``T`` is already within :data:`GAP_RTOL` of the proved lower bound, the
-    optimum has a cluster of switches whose switching-function sign is below
-    rounding (e.g. a two-mass machine tuned near ``omega T = 4 pi``: a notch
-    of a few microseconds at the rigid switch).  Its switch times are found
-    from the final-state conditions alone (:func:`primal_newton`); the
-    profile is returned only if it passes the exact final-state check and is
-    within ``GAP_RTOL`` of the lower bound (the certificate then says so:
-    ``within_gap``).
-    """
-    if not T - T_low <= GAP_RTOL * T or roots.size == 0:
-        return None
-    for cand, sign0 in split_candidates(roots, float(signs[0]), T):
-        ok, tau, T_c, _ = primal_newton(sh, cand, sign0, T)
-        if not ok or not T_c - T_low <= GAP_RTOL * T_c:
-            continue
-        signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
-        # a full Pontryagin certificate where the co-state can still be had
-        # (a notch wide enough for S to resolve): switch-time Newton from here
-        ok2, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
-        if ok2 and T2 - T_low <= GAP_RTOL * T2:
-            try:
-                profile = _assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
-                if profile.certificate.status is CertificateStatus.OPTIMAL:
-                    profile.extra["solver_path"] = SolverPath.CLUSTER
-                    return profile
-            except SolverError:
-                pass
-        try:
-            profile = _assemble(problem, system, nuh / sh.s, T_c, tau, signs_c, t0, sh.evaluations, T_low)
-        except SolverError:
-            continue
-        if profile.certificate.passed:
-            profile.extra["solver_path"] = SolverPath.CLUSTER
-            return profile
-    return None
-
-
-def _structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low) -> BangBangProfile | None:
-    """The bounded structure search (:mod:`.structure_search`) when the co-state iterations missed the target.
-
-    Candidates reaching the target are tried shortest first: the switch-time
-    Newton with the co-state from there, then the exact simulation and the
-    certificate.  The first certified one is returned.  If none certifies
-    (a notch whose switching-function sign is below rounding, and too far
-    from the rigid body's bound for the gap to prove it), the shortest one
-    that passes the exact final-state check is returned, not certified, its
-    certificate message stating the proved bound it has: ``T`` is within
-    ``(T - T_low) / T`` of the rigid body's minimum time.
-    """
-    rigid = rigid_profile(problem.model, problem.u_max, sh.x0, problem.include_position)
-    bases = [(roots, float(signs[0]))]
-    if rigid.switch_times.size or rigid.duration > 0.0:
-        bases.append((np.sort(rigid.duration - rigid.switch_times), float(np.sign(rigid.levels[-1]))))
-    best = None  # the shortest candidate that reaches the target, if none certifies
-    for T_c, tau, sign0 in notch_candidates(sh, bases, T):
-        signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
-        ok, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
-        if ok:
-            try:
-                profile = _assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
-            except SolverError:
-                profile = None
-            if profile is not None and profile.certificate.passed:
-                profile.extra["solver_path"] = SolverPath.SEARCH
-                return profile
-        if best is None or T_c < best.duration:
-            try:
-                best = _assemble(problem, system, nuh / sh.s, T_c, tau, signs_c, t0, sh.evaluations, T_low)
-            except SolverError:
-                pass
-    if best is None:
-        return None
-    gap = (best.duration - T_low) / best.duration
-    cert = replace(
-        best.certificate,
-        message=f"not proved optimal: within {gap:.1e} (relative) of the proved lower bound {T_low!r} s "
-        f"(the rigid body's minimum time); sign test: {best.certificate.message}",
-    )
-    profile = replace(best, certificate=cert)
-    profile.extra["solver_path"] = SolverPath.SEARCH
-    return profile
-
-
 def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:
     """Relative final-state error of the rigid body's optimum on the whole machine (0: it is optimal)."""
     if rigid.duration == 0.0 or system.n == system.r:
@@ -488,6 +400,13 @@ def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) 
 
 
 def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low=None) -> BangBangProfile:
+    """The profile with switches at times-to-go ``roots_tau`` (s) and signs ``signs_tau``, simulated and certified.
+
+    ``nu``: the co-state direction for the certificate; ``T`` the duration
+    (s); ``t0`` the ``perf_counter`` at the start of planning; ``T_low`` a
+    proved lower bound (s) for the gap certificate.  Raises
+    :class:`SolverError` if the exact final state misses the target.
+    """
     um = problem.u_max
     switch_times = np.clip(np.sort(T - roots_tau), 0.0, T)
     levels = um * signs_tau[::-1]
