@@ -548,6 +548,10 @@ def validating_callback(
         candidate = current()
         for p in params:
             candidate[p.name] = plain(p.value) if p.value is not None else []
+            try:  # the registry's ROS type: rclpy no longer checks the dynamically typed ones (u_max, model.b0, ...)
+                check_type(p.name, candidate[p.name])
+            except ConfigError as exc:
+                return SetParametersResult(successful=False, reason=f"wrong type: {exc}")
         try:
             validate(candidate)
         except FlexmotionError as exc:

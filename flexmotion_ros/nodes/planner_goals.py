@@ -26,12 +26,12 @@ from ..core.multi_input.dispatch import (
     AnyConfig,
     check_budgets,
     move_problem,
-    plan,
     positions_text,
     rest_state,
     state_at_rest,
     state_size,
 )
+from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
 from ..core.results import PlanResult
 from ..execution import (
     SPLICE_ATTEMPTS,
@@ -83,7 +83,7 @@ class Outcome:
 
 def _plan_here(config: AnyConfig, problem, rate_hz: float | None) -> PlanResult:
     """``plan_move`` (``plan_multi_move`` for several inputs) in this process (looked up at each call: tests replace it)."""
-    return plan(config, problem, rate_hz)
+    return plan_move(config, problem, rate_hz)
 
 
 def _has_target(problem) -> bool:

@@ -80,8 +80,8 @@ def config_from_any(params: Mapping[str, Any]) -> AnyConfig:
         if isinstance(params.get(name), (list, tuple)) and params.get(name):
             raise ConfigError(
                 name,
-                f"is a list ({list(params[name])}): lists are for multi-input models, which name their inputs "
-                "in model.inputs; a single-input model takes one double here",
+                f"is a list ({list(params[name])}): lists are for multi-input models (set model.inputs, one name "
+                "per input); a single-input model takes one double here",
             )
     for name in MULTI_ONLY:
         if _set(params.get(name)):
