@@ -170,3 +170,67 @@ def test_partial_joint_trajectory_keeps_the_other_axis(ros):
         5.0,
         "the refusal",
     )
+
+
+#: Multi-input files, good and bad: ``flexmotion plan`` and the node must give the same verdict, word for word.
+VERDICT_EDITS = [
+    ("", ""),  # the shipped gantry: accepted by both
+    ("rigid_bodies:", "rigid_bodys:"),
+    ("u_max: [300.0, 500.0]", "u_max: [300, 500]"),
+    ("u_max: [300.0, 500.0]", "u_max: [300.0, 500.0, 1.0]"),
+    ("u_max: [300.0, 500.0]", "u_max: 400.0"),  # one bound for both inputs: accepted
+    ("b: [-0.005, 0.0, 0.0, -0.0014285714285714286]", "b: [-0.005, 0.0, 0.0, 0.0]"),
+    ("sync: time", "sync: tme"),
+    ("sync: time", "sync: none"),
+    ("method: time_optimal", "method: limited"),
+    ("method: time_optimal", "method: zvd"),
+    ("rate_hz: 1000.0", "rate_hz: 0.5"),  # sway above the Nyquist frequency: refused
+]
+
+
+@pytest.mark.parametrize("old, new", VERDICT_EDITS)
+def test_the_cli_and_the_node_give_the_same_verdict_on_a_multi_input_file(ros, tmp_path, old, new):
+    from flexmotion_ros.core.errors import FlexmotionError
+    from flexmotion_ros.core.multi_input.dispatch import load_any_config
+    from flexmotion_ros.nodes.planner_node import PlannerNode
+
+    from .conftest import NAMESPACE
+
+    path = tmp_path / "gantry.yaml"
+    path.write_text((ROOT / "config" / "gantry.yaml").read_text().replace(old, new))
+    try:
+        cli = ("ok", load_any_config(path))
+    except FlexmotionError as exc:
+        cli = ("refused", str(exc))
+    try:
+        args = ["--ros-args", "--params-file", str(path)]
+        node = ros.add(PlannerNode(context=ros.context, namespace=NAMESPACE, cli_args=args))
+        verdict = ("ok", node.config)
+    except FlexmotionError as exc:
+        verdict = ("refused", str(exc))
+    assert verdict == cli
+    assert (cli[0] == "ok") == (new in ("", "u_max: 400.0", "sync: none", "method: zvd")), cli
+
+
+def test_demo_moves_the_gantry_on_both_axes(tmp_path, capsys):
+    """``flexmotion demo --config config/gantry.yaml --goal 3,2``, shortened: planner and plant processes, real DDS."""
+    from flexmotion_ros.cli.main import main
+
+    png = tmp_path / "demo.png"
+    status = main(
+        [
+            "demo",
+            "--config",
+            str(ROOT / "config" / "gantry.yaml"),
+            "--goal",
+            "0.6,0.3",
+            "--rate",
+            "100.0",
+            "--plot",
+            str(png),
+        ]
+    )
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert "measured arrival" in out and "every axis together" in out, out
+    assert "trolley" in out and "bridge" in out and png.stat().st_size > 10_000

@@ -42,7 +42,7 @@ from ..time_optimal.rigid_body import rigid_time
 from .methods import check_multi_method
 from .model import MultiModel
 from .parse import PARAMETER_NAMES, multi_setup_from_parameters
-from .problem import MultiMoveProblem
+from .problem import MultiMoveProblem, check_bounds
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ class MultiPlannerConfig:
     ----------
     model : MultiModel
         ``k`` rigid bodies, ``N`` modes, ``m`` inputs (controllable).
-    u_max : ndarray
+    u_max : tuple of float
         One bound per input (N or the input's unit), each > 0.
     rate_hz : float
         Command rate (Hz).
@@ -61,8 +61,8 @@ class MultiPlannerConfig:
         One of :data:`~flexmotion_ros.core.multi_input.methods.MULTI_METHODS`.
     sync : str
         ``time`` (default), ``none`` or ``phase``.
-    fuel_weights : ndarray
-        ``c_i`` of eq. 2.38, one per input (``min_fuel``).
+    fuel_weights : tuple of float
+        ``c_i`` of eq. 2.38, one per input (``min_fuel``; default all 1).
     position_min, position_max : float
         Allowed goal positions of every rigid body (m or rad); infinite: no limit.
     options : dict
@@ -74,11 +74,11 @@ class MultiPlannerConfig:
     """
 
     model: MultiModel
-    u_max: np.ndarray
+    u_max: tuple
     rate_hz: float = 1000.0
     method: str = "time_optimal"
     sync: str = "time"
-    fuel_weights: np.ndarray | None = None
+    fuel_weights: tuple | None = None
     position_min: float = -math.inf
     position_max: float = math.inf
     options: dict = field(default_factory=dict)
@@ -86,6 +86,12 @@ class MultiPlannerConfig:
     max_move_samples: int = MAX_MOVE_SAMPLES
 
     def __post_init__(self) -> None:
+        # tuples, not arrays: a configuration compares with == (the node's against the command line's)
+        object.__setattr__(self, "u_max", tuple(float(v) for v in check_bounds(self.u_max, self.model.m)))
+        weights = np.ones(self.model.m) if self.fuel_weights is None else self.fuel_weights
+        object.__setattr__(
+            self, "fuel_weights", tuple(float(v) for v in check_bounds(weights, self.model.m, "fuel_weights"))
+        )
         object.__setattr__(self, "rate_hz", check_rate_hz(self.rate_hz))
         check_multi_method(self.method)
         check_sampling(self.model, self.rate_hz)  # the Nyquist check reads only omega
@@ -238,7 +244,7 @@ def rigid_lower_bound(problem: MultiMoveProblem) -> float:
     shift = problem.x0 - problem.target_state()
     T = 0.0
     for j in range(model.k):
-        gain = float(np.abs(B0[j]) @ problem.u_max)
+        gain = float(np.abs(B0[j]) @ np.asarray(problem.u_max, float))
         body = ModalModel(b0=gain, c=model.c[j])
         x0 = shift[2 * j : 2 * j + 2]
         has_position = problem.targets[j] is not None

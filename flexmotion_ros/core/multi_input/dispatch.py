@@ -184,9 +184,9 @@ def plan(config: AnyConfig, problem, rate_hz: float | None = None) -> PlanResult
     )
     s = result.sampled
     if s is not None and s.commands.size:
-        peak = np.max(np.abs(s.commands), axis=0)
-        if np.any(peak > config.u_max):
-            i = int(np.argmax(peak / config.u_max))
+        peak, u_max = np.max(np.abs(s.commands), axis=0), np.asarray(config.u_max, float)
+        if np.any(peak > u_max):
+            i = int(np.argmax(peak / u_max))
             raise SolverError(
                 f"method {config.method} produced |u_{config.model.inputs[i]}| = {peak[i]} > u_max = "
                 f"{config.u_max[i]}; nothing is returned"
