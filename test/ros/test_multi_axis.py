@@ -234,3 +234,47 @@ def test_demo_moves_the_gantry_on_both_axes(tmp_path, capsys):
     assert status == 0, out
     assert "measured arrival" in out and "every axis together" in out, out
     assert "trolley" in out and "bridge" in out and png.stat().st_size > 10_000
+
+
+def test_deactivating_mid_move_ends_with_a_hold_of_zeros_on_every_input(ros):
+    from lifecycle_msgs.msg import Transition
+
+    from .test_safety import lifecycle
+
+    planner, _, rec = start(ros)
+    rec.goals.publish(Float64MultiArray(data=[3.0, 2.0]))
+    wait_for(lambda: len(rec.commands()) >= 40, 10.0, "the move under way")
+    assert lifecycle(ros, Transition.TRANSITION_DEACTIVATE)
+    wait_for(lambda: planner.stream.halted is not None, 5.0, "the halt")
+    import time
+
+    time.sleep(0.3)
+    u = rec.commands()
+    assert planner.stream.halted.interrupted and planner.stream.halted.held
+    assert len(u) < planner.installed[-1].samples + 1
+    np.testing.assert_array_equal(u[-1], [0.0, 0.0])  # the hold: zero on both drives
+    assert np.all(np.any(u[:-1] != 0.0, axis=1))  # cut off mid-move: no hold before
+    assert "hold (0) sent" in planner.stream.halted.describe()
+
+
+def test_a_missing_or_incomplete_measured_state_refuses_a_multi_axis_goal(ros):
+    from sensor_msgs.msg import JointState
+
+    from flexmotion_ros.nodes.plant_node import PLANT_QOS
+
+    planner = ros.planner(**{**GANTRY, "state.timeout_s": 0.3})
+    ros.connected(planner, subscribers=1)
+    out = planner.request(np.array([1.0, 1.0]), execute=True, source="test")  # nothing publishes joint_states
+    assert not out.ok and out.reason.startswith("state.source: no measured state"), out.reason
+    pub = ros.probe.create_publisher(JointState, "joint_states", PLANT_QOS)
+    wait_for(lambda: pub.get_subscription_count() >= 2, 10.0, "the planner's state subscription")
+    x = planner.config.model.rest_state([0.5, -0.5])
+    stamp = ros.probe.get_clock().now().to_msg()
+    pub.publish(messages.joint_state(["x", "sway_x", "sway_y"], np.delete(x, [2, 3]), 0.0, stamp))  # no 'y'
+    wait_for(lambda: planner._listener.store.received >= 1, 5.0, "the state")
+    out = planner.request(np.array([1.0, 1.0]), execute=True, source="test")
+    assert not out.ok and "joint 'y' missing from the measured joint_states" in out.reason, out.reason
+    pub.publish(messages.joint_state(["x", "y", "sway_x", "sway_y"], x, 0.0, ros.probe.get_clock().now().to_msg()))
+    wait_for(lambda: planner._listener.store.received >= 2, 5.0, "the whole state")
+    out = planner.request(np.array([1.0, 1.0]), execute=False, source="test")  # fresh: planned from there
+    assert out.ok and np.array_equal(out.segment.states[0], x), out
