@@ -102,7 +102,9 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(config, MultiPlannerConfig):
         args.goal = config.check_goal(goal)
         if config.model.k > len(multi_demo.POSE_AXES):
-            raise GoalError("goal", f"the demo sends goals as pose x, y, z: at most 3 rigid bodies, got {config.model.k}")
+            raise GoalError(
+                "goal", f"the demo sends goals as pose x, y, z: at most 3 rigid bodies, got {config.model.k}"
+            )
     else:
         if len(goal) != 1:
             raise GoalError("goal", f"this single-input model takes one target, got {len(goal)}: {goal}")
@@ -363,7 +365,9 @@ class _Demo:
             planned_p = np.array([p.pose.position.x for p in plan.poses])
             if multi:
                 k = self.config.model.k
-                planned_p = np.array([[getattr(p.pose.position, a) for a in multi_demo.POSE_AXES[:k]] for p in plan.poses])
+                planned_p = np.array(
+                    [[getattr(p.pose.position, a) for a in multi_demo.POSE_AXES[:k]] for p in plan.poses]
+                )
             wait(lambda: len(commands) >= K + 1, f"{K + 1} commands")
             if self.args.realtime:
                 # every command integrated (from its arrival time), then watch it stand still

@@ -73,7 +73,9 @@ def report(demo, t_req: float, cmds: list, sts: list, diag: dict, K: int) -> int
             f"-- from then on within {tol:g} of the move in every position, velocity and sway"
         )
     else:
-        lines.append(f"measured arrival     none: not within {tol:g} of the move by the last sample (see the residuals)")
+        lines.append(
+            f"measured arrival     none: not within {tol:g} of the move by the last sample (see the residuals)"
+        )
     peak = np.max(np.abs(u), axis=0)
     lines.append(
         "peak |command|       "
@@ -86,7 +88,9 @@ def report(demo, t_req: float, cmds: list, sts: list, diag: dict, K: int) -> int
     for name, a in zip(model.mode_names, sway(model, X[-1:])[0]):
         lines.append(f"residual {name:<11} {a:.3e}  ({a / move:.1e} of the move; modal coordinate)")
     if args.omega_scale:
-        lines.append(f"plant model error    omega x {args.omega_scale}: the planner used {list(config.model.omega)} rad/s")
+        lines.append(
+            f"plant model error    omega x {args.omega_scale}: the planner used {list(config.model.omega)} rad/s"
+        )
     stream_wall = t_recv[K] - t_recv[0] if len(t_recv) > K else math.nan
     lines.append(f"stream               received here over {stream_wall:.6f} s ({K} command rows of {model.m} + hold)")
     print("\n".join(lines))
@@ -96,7 +100,9 @@ def report(demo, t_req: float, cmds: list, sts: list, diag: dict, K: int) -> int
             f"({'real time' if args.realtime else 'lockstep'} plant, {demo.rate:g} Hz, {model.m} drives)"
         )
         plot_multi_demo(args.plot, t_cmd, u, config.u_max, t_x, X, goal, start, model, title, t_arr)
-        print(f"plot                 {args.plot} (every drive, axis and sway; dashed: the exact zero-input continuation)")
+        print(
+            f"plot                 {args.plot} (every drive, axis and sway; dashed: the exact zero-input continuation)"
+        )
     return 0 if arrived or args.omega_scale else 1
 
 
