@@ -36,7 +36,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.errors import ConfigError, GoalError
 from ..core.multi_input.config import MultiPlannerConfig
-from ..core.multi_input.dispatch import AnyConfig, body_positions, keep_targets
+from ..core.multi_input.dispatch import AnyConfig, body_positions, check_joint_names, keep_targets
 from ..core.parameters import closest_hint
 from ..execution.measured_state import StateSettings
 from . import messages
@@ -56,22 +56,11 @@ def command_joint_names(config: AnyConfig, values: Mapping[str, Any]) -> tuple[s
     Raises
     ------
     ConfigError
-        ``joint_names`` with another count than the inputs, or repeated names.
+        ``joint_names`` with another count than the inputs, or repeated names
+        (:func:`~flexmotion_ros.core.multi_input.dispatch.check_joint_names`, as ``flexmotion plan``).
     """
-    given = tuple(str(n) for n in (values.get("joint_names") or ()))
-    if not is_multi(config):
-        if given and len(given) != 1:
-            raise ConfigError("joint_names", f"a single-input model has one joint (joint_name), got {list(given)}")
-        return given or (str(values.get("joint_name", "rigid_body")),)
-    names = given or tuple(config.model.inputs)
-    if len(names) != config.model.m:
-        raise ConfigError(
-            "joint_names",
-            f"needs one joint per input {list(config.model.inputs)} ({config.model.m}), got {len(names)}: {list(names)}",
-        )
-    if len(set(names)) != len(names):
-        raise ConfigError("joint_names", f"names must be unique, got {list(names)}")
-    return names
+    names = check_joint_names(config, values.get("joint_names"))
+    return names or (str(values.get("joint_name", "rigid_body")),)
 
 
 def state_joints(settings: StateSettings, config: AnyConfig) -> list[str]:

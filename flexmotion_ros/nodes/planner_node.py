@@ -399,6 +399,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
             "method": self._config.method,
             "u_max": self._config.u_max if np.ndim(self._config.u_max) == 0 else bounds_text(self._config),
             "modes": self._config.model.n_modes,
+            "command_joints": ",".join(self._joint_names),  # the joints of 'commands', in order
             "command_subscribers": self.commands_publisher.get_subscription_count(),
             "streaming_ready": self._command_subscribers > 0,
             "replan_lead_samples": self._lead_samples(),

@@ -75,7 +75,9 @@ def config_from_any(params: Mapping[str, Any]) -> AnyConfig:
         Naming the parameter.
     """
     if is_multi(params):
-        return multi_config_from_parameters(params)
+        config = multi_config_from_parameters(params)
+        check_joint_names(config, params.get("joint_names"))  # a node parameter: the same verdict here
+        return config
     for name in LIST_FOR_MULTI:
         if isinstance(params.get(name), (list, tuple)) and params.get(name):
             raise ConfigError(
@@ -86,7 +88,36 @@ def config_from_any(params: Mapping[str, Any]) -> AnyConfig:
     for name in MULTI_ONLY:
         if _set(params.get(name)):
             raise ConfigError(name, "is read by multi-input models only: set model.inputs (one name per input)")
-    return config_from_parameters(params)
+    config = config_from_parameters(params)
+    check_joint_names(config, params.get("joint_names"))
+    return config
+
+
+def check_joint_names(config: AnyConfig, names) -> tuple[str, ...]:
+    """The joints of ``commands`` (node parameter ``joint_names``), one per input, unique; empty: the inputs.
+
+    Checked here so that ``flexmotion plan`` and the planner node give the same
+    verdict on a file (a single-input model has one joint, ``joint_name``).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``joint_names``: another count than the inputs, or a name repeated.
+    """
+    given = tuple(str(n) for n in (names or ()))
+    if not isinstance(config, MultiPlannerConfig):
+        if len(given) > 1:
+            raise ConfigError("joint_names", f"a single-input model has one joint (joint_name), got {list(given)}")
+        return given
+    model = config.model
+    out = given or tuple(model.inputs)
+    if len(out) != model.m:
+        raise ConfigError(
+            "joint_names", f"needs one joint per input {list(model.inputs)} ({model.m}), got {len(out)}: {list(out)}"
+        )
+    if len(set(out)) != len(out):
+        raise ConfigError("joint_names", f"names must be unique, got {list(out)}")
+    return out
 
 
 def load_any_config(path: str | Path, node_name: str | None = "flexmotion_planner") -> AnyConfig:
@@ -243,6 +274,7 @@ __all__ = [
     "body_positions",
     "bounds_text",
     "check_budgets",
+    "check_joint_names",
     "config_from_any",
     "finite_or_keep",
     "is_multi",
