@@ -5,7 +5,11 @@
 Interfaces (standard types only)
 --------------------------------
 ``~/goal`` (std_msgs/Float64)
-    Absolute target position (m or rad).
+    Absolute target position (m or rad); with several rigid bodies refused
+    with the reason (use ``~/goals``).
+``~/goals`` (std_msgs/Float64MultiArray)
+    One target per rigid body (``model.rigid_bodies``; one value for a
+    single-input model).  Several inputs (``model.inputs``): :mod:`.multi_axis`.
 ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory)
     ``joint_names`` must be ``[joint_name]`` (another name is refused, with
     the closest valid one); the last point's position is the target, its
@@ -109,7 +113,8 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.config import PlannerConfig
+from ..core.errors import ConfigError
+from ..core.multi_input.dispatch import AnyConfig, bounds_text, n_inputs, positions_text
 from ..execution import (
     PLAN_TIME_WINDOW,
     Segment,
@@ -118,7 +123,7 @@ from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
 from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
-from . import messages
+from . import messages, multi_axis
 from .measured_state import StateListener
 from .parameters import (
     PLANNER_NODE_ONLY,
@@ -227,11 +232,12 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
 
     # ------------------------------------------------------------------ setup
     def _setup(self) -> None:
-        self._config: PlannerConfig = planner_config(self._values())
+        self._config: AnyConfig = planner_config(self._values())
         v = self._values()
-        self._position = float(v["initial_position"])
+        self._position = multi_axis.initial_position(self._config, v["initial_position"])
         self._state = state_settings(v)  # ConfigError names a bad state.* / joint_name / trajectory.* value
-        self._state_joints = self._state.state_joint_names(self._config.model.n_modes)
+        self._state_joints = multi_axis.state_joints(self._state, self._config)
+        self._joint_names = multi_axis.command_joint_names(self._config, v)  # the joints of 'commands', in order
         self._replan_lead_s = float(v["replan_lead_s"])
         self._max_points = int(v["max_trajectory_points"])
         self._frame_id = str(v["frame_id"])
@@ -262,7 +268,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self._status = StatusReporter(
             self,
             float(v["diagnostics_period_s"]),
-            self._position,
+            self._position if np.ndim(self._position) == 0 else positions_text(self._position),
             self._status_context,
             tick=self._check_streaming_ready,
         )
@@ -281,6 +287,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self._worker = RequestWorker(self._handle, self._not_planned)
         self._wake = self.create_guard_condition(lambda: None, callback_group=requests)
         self.create_subscription(Float64, "~/goal", self._on_goal, GOAL_QOS, callback_group=requests)
+        self.create_subscription(Float64MultiArray, "~/goals", self._on_goals, GOAL_QOS, callback_group=requests)
         self.create_subscription(
             JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, GOAL_QOS, callback_group=requests
         )
@@ -298,12 +305,16 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self._froze_gc = True
         m = self._config.model
         self.get_logger().info(
-            f"ready: {m.n_modes} mode(s), u_max {self._config.u_max:g}, {rate:g} Hz, method {self._config.method}, "
-            f"joint {self._state.joint_name!r}, "
+            f"ready: {m.n_modes} mode(s), u_max {bounds_text(self._config)}, {rate:g} Hz, method {self._config.method}, "
+            + (
+                f"joint {self._state.joint_name!r}, "
+                if not multi_axis.is_multi(self._config)
+                else f"commands for joints {list(self._joint_names)}, rigid bodies {list(m.rigid_bodies)}, "
+            )
             + (
                 f"start state measured on {self._listener.topic}"
                 if self._listener is not None
-                else f"at {self._position:g} (state.source: assumed)"
+                else f"at {positions_text(self._position)} (state.source: assumed)"
             )
             + (", stream on ROS time (use_sim_time)" if self._ros_time_stream else "")
         )
@@ -346,7 +357,17 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         )
 
     def _validate(self, candidate: dict[str, Any]) -> None:
-        planner_config(candidate)
+        new = planner_config(candidate)
+        old = getattr(self, "_config", None)
+        if old is not None and self._lifecycle in ("inactive", "active"):
+            # the stream's message layout and the measured state's joints are fixed at start-up
+            shape = (multi_axis.is_multi(old), n_inputs(old), getattr(old.model, "rigid_bodies", ()))
+            if (multi_axis.is_multi(new), n_inputs(new), getattr(new.model, "rigid_bodies", ())) != shape:
+                raise ConfigError(
+                    "model.inputs",
+                    "the inputs and rigid bodies are fixed at start-up (the layout of 'commands' and of the measured "
+                    "state): restart the planner with the new parameter file",
+                )
 
     def _apply_parameters(self, params) -> None:
         if self._lifecycle not in ("inactive", "active"):
@@ -361,7 +382,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self.get_logger().info(f"parameters set ({changed}); the next goal uses them")
 
     @property
-    def config(self) -> PlannerConfig:
+    def config(self) -> AnyConfig:
         """The configuration the next goal is planned with."""
         return self._config
 
@@ -373,11 +394,12 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
     def _status_context(self) -> dict[str, Any]:
         """The node's own values of the status on /diagnostics (after state, planning, last_error, target)."""
         return {
-            "position_at_rest": self._position,
+            "position_at_rest": self._position if np.ndim(self._position) == 0 else positions_text(self._position),
             "rate_hz": self._config.rate_hz,
             "method": self._config.method,
-            "u_max": self._config.u_max,
+            "u_max": self._config.u_max if np.ndim(self._config.u_max) == 0 else bounds_text(self._config),
             "modes": self._config.model.n_modes,
+            "command_joints": ",".join(self._joint_names),  # the joints of 'commands', in order
             "command_subscribers": self.commands_publisher.get_subscription_count(),
             "streaming_ready": self._command_subscribers > 0,
             "replan_lead_samples": self._lead_samples(),

@@ -20,9 +20,8 @@ import numpy as np
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from ..core.config import PlannerConfig
 from ..core.errors import SolverError
-from ..core.model.boundary import state_to_rest
+from ..core.multi_input.dispatch import AnyConfig, body_positions, move_problem, positions_text
 from ..execution import Segment, plan_summary
 from ..execution.requests import Request, RequestKind
 from .planner_goals import MoveRecord, Outcome
@@ -117,16 +116,17 @@ class StopHandling:
             k_req, lead = where["request_sample"], where["lead_samples"]
             response.message = (
                 f"stopping: {out.segment.samples} samples ({out.segment.samples * self.stream.dt:.6g} s), "
-                f"at rest at {out.segment.states[-1, 0]:.9g}; from sample {out.segment.start}, "
+                f"at rest at {positions_text(body_positions(self._config.model, out.segment.states[-1]))}; "
+                f"from sample {out.segment.start}, "
                 f"{out.segment.start - k_req} samples after the request (look-ahead {lead})"
                 + ("; a ready stop" if "stop_lead_samples" in out.info else "")
             )
         return response
 
-    def _plan_stop(self, x0: np.ndarray, config: PlannerConfig) -> Segment:
+    def _plan_stop(self, x0: np.ndarray, config: AnyConfig) -> Segment:
         """The stop from ``x0`` (final position free), planned and verified like every plan (preparer thread)."""
         t0 = time.perf_counter()
-        problem = state_to_rest(config.model, config.u_max, x0, None)
+        problem = move_problem(config, x0, None)
         result = self._planner_for(problem)(config, problem, config.rate_hz)
         sampled = result.sampled
         if sampled is None:

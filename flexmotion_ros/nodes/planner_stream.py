@@ -11,6 +11,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import numpy as np
+
+from ..core.multi_input.dispatch import n_inputs, positions_text
 from ..execution import CommandStream, Segment
 from ..execution.splice import StopPreparer
 from . import messages
@@ -25,10 +28,15 @@ class StreamGlue:
 
     def _make_stream(self, v: dict[str, Any], rate: float) -> None:
         """The command stream on ``commands`` (stopped until activate) and the ready-stop preparer."""
-        msg = messages.command(0.0)
+        m = n_inputs(self._config)  # values per sample: one per input (fixed at start-up)
+        msg = messages.command(0.0, m)
+        hold = [0.0] * m
 
-        def publish(value: float) -> None:
-            msg.data[0] = value
+        def publish(value) -> None:
+            if m == 1:
+                msg.data[0] = value
+            else:  # a row of m values, or the hold (HOLD: zero on every input)
+                msg.data = hold if np.ndim(value) == 0 else value.tolist()
             self.commands_publisher.publish(msg)
 
         # use_sim_time: the node's ROS clock (it follows /clock); else the monotonic wall clock, as always
@@ -100,7 +108,7 @@ class StreamGlue:
         def report() -> None:
             times, late = self.stream.recent_timing(n, before=self.stream.samples_sent - sent)
             self._status.finished(times, late)
-            self.get_logger().info(f"move finished, at rest at {position:.9g}")
+            self.get_logger().info(f"move finished, at rest at {positions_text(position)}")
             self.publish_diagnostics()
 
         self._status.defer(report)
