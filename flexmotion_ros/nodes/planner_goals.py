@@ -424,6 +424,8 @@ class GoalHandling:
                     self._move_requested_at = t_req
                     seg.info.from_idle = True
                     self.stream.start_now(seg)
+                info["plan_attempts"] = _attempt + 1  # > 1: the look-ahead was overrun (or the timeline changed)
+                info["planned_at_sample"], info["lead_samples"] = k_next, lead  # the look-ahead this plan had
                 self._installed(seg, goal, info, source)
                 self._predicted_end = np.array(seg.states[-1], float)
                 return Outcome(True, "", seg, self._ros_time_of(seg.start), info)
