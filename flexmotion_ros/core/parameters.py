@@ -89,6 +89,9 @@ class ParameterInfo:
     choices : tuple of str
         The only values a string parameter may take (empty: any); checked
         here, so that ``flexmotion plan`` and the nodes refuse the same file.
+    also : ParameterType or None
+        A second type the value may have (a dynamically typed parameter, e.g.
+        one noise level or one per channel).
     """
 
     name: str
@@ -98,6 +101,7 @@ class ParameterInfo:
     methods: tuple[str, ...] = ()
     required_by: tuple[str, ...] = ()
     choices: tuple[str, ...] = ()
+    also: ParameterType | None = None
 
 
 def _p(name: str, type_: ParameterType, allowed: str, description: str, **kw: Any) -> ParameterInfo:
@@ -224,6 +228,23 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     ),
 )
 
+#: The measured channels (``core/model/measurement.py``): the same names in the planner's and the plant's file.
+MEASUREMENT_PARAMETERS: tuple[ParameterInfo, ...] = (
+    _p("measurement.names", SA, "unique physical coordinate names", "channels of the plant's measurements topic"),
+    _p(
+        "measurement.map",
+        DA,
+        "row-major, len(measurement.names) x (rigid bodies + modes)",
+        "y = map @ [p, q_1, ..., q_N] (positions; velocities and accelerations likewise)",
+    ),
+    _p(
+        "measurement.kinds",
+        SA,
+        "one per name: position, velocity or acceleration; default position",
+        "what each channel reads",
+    ),
+)
+
 #: Parameters of ``flexmotion_plant`` (add new ones here).
 PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("lockstep", B, "true or false", "advance one sample per command"),
@@ -235,6 +256,14 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("plant.apply_at", S, "'arrival' or 'send'", "when a command acts", choices=("arrival", "send")),
     _p("plant.initial_position", D, "m or rad", "initial rigid-body position"),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
+    _p(
+        "plant.noise_std",
+        D,
+        "units of each channel, >= 0: one value or one per measured channel",
+        "white noise on the measurements topic",
+        also=DA,
+    ),
+    _p("plant.noise_seed", I, "integer >= 0", "seed of the measurement noise"),
 )
 
 #: Parameters rclpy declares on every node.
@@ -249,12 +278,19 @@ KNOWN_PREFIXES: tuple[str, ...] = ("qos_overrides.", "design.")
 #: Every known parameter by name.
 KNOWN: dict[str, ParameterInfo] = {
     p.name: p
-    for p in CONFIG_PARAMETERS + METHOD_OPTIONS + PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS
+    for p in CONFIG_PARAMETERS
+    + METHOD_OPTIONS
+    + PLANNER_NODE_PARAMETERS
+    + PLANT_NODE_PARAMETERS
+    + MEASUREMENT_PARAMETERS
+    + ROS_PARAMETERS
 }
 #: Names of the method options.
 OPTION_NAMES: frozenset[str] = frozenset(p.name for p in METHOD_OPTIONS)
 #: Names that are neither configuration nor method options (nodes, rclpy).
-NODE_NAMES: frozenset[str] = frozenset(p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS)
+NODE_NAMES: frozenset[str] = frozenset(
+    p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + MEASUREMENT_PARAMETERS + ROS_PARAMETERS
+)
 
 
 def option(name: str) -> ParameterInfo:
@@ -371,7 +407,7 @@ def check_type(name: str, value: Any) -> None:
         ) from None
     if t is None:
         return
-    if t == info.type:
+    if t == info.type or (info.also is not None and t == info.also):
         if info.choices:
             check_choice(name, value, info.choices)
         return

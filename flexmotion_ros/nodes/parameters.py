@@ -42,6 +42,7 @@ from rclpy.parameter import Parameter
 from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
 from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
+from ..core.model.measurement import MeasurementMap, measurement_map, noise_levels
 from ..core.model.modal_model import ModalModel
 from ..core.parameters import METHOD_OPTIONS, check_name, check_type, required_options
 
@@ -65,6 +66,8 @@ class Spec:
         A change cannot apply live (fixed at start-up).
     fp_range, int_range : tuple, optional
         ``(from, to)`` for a descriptor range.
+    dynamic : bool
+        Dynamically typed (e.g. a double or a double array).
     """
 
     name: str
@@ -73,9 +76,10 @@ class Spec:
     read_only: bool = False
     fp_range: tuple[float, float] | None = None
     int_range: tuple[int, int] | None = None
+    dynamic: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
-        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only, dynamic_typing=self.dynamic)
         if self.fp_range is not None:
             d.floating_point_range = [
                 FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)
@@ -218,6 +222,7 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.01, 3600.0),
         ),
         *_goal_specs(),
+        *measurement_specs(),
     ]
 
 
@@ -265,6 +270,34 @@ def _goal_specs() -> list[Spec]:
             "refuse",
             "a ~/joint_trajectory whose last time_from_start is before the time-optimal arrival: 'refuse' it, or "
             "take the 'optimum' (arrive as fast as possible). Fixed at start-up.",
+            read_only=True,
+        ),
+    ]
+
+
+def measurement_specs() -> list[Spec]:
+    """``measurement.*``: the machine's measured channels (:mod:`flexmotion_ros.core.model.measurement`)."""
+    tail = " Fixed at start-up."
+    return [
+        Spec(
+            "measurement.names",
+            Parameter.Type.STRING_ARRAY,
+            "physical coordinate names of the channels on 'measurements' (sensor_msgs/JointState), unique; empty: "
+            "the rigid-body position only." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.map",
+            Parameter.Type.DOUBLE_ARRAY,
+            "row-major len(measurement.names) x (1 + modes): y = map @ [p, q_1, ..., q_N] (velocity and "
+            "acceleration channels: the same row on the derivatives)." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.kinds",
+            Parameter.Type.STRING_ARRAY,
+            "one per name: position (m), velocity (m/s) or acceleration (m/s^2, feeds the command through); "
+            "empty: all position." + tail,
             read_only=True,
         ),
     ]
@@ -357,6 +390,23 @@ def plant_specs() -> list[Spec]:
             "Fixed at start-up.",
             read_only=True,
             fp_range=(0.0, 3600.0),
+        ),
+        *measurement_specs(),
+        Spec(
+            "plant.noise_std",
+            0.0,
+            "white noise (standard deviation, units of each channel: m, m/s, m/s^2) added to 'measurements': one "
+            "value for every channel or one per channel (a double array), each >= 0; 0: exact readings. Fixed at "
+            "start-up.",
+            read_only=True,
+            dynamic=True,
+        ),
+        Spec(
+            "plant.noise_seed",
+            0,
+            "seed of the measurement noise (integer >= 0): the same seed gives the same noise. Fixed at start-up.",
+            read_only=True,
+            int_range=(0, 2**62),
         ),
     ]
 
@@ -514,6 +564,12 @@ class PlantConfig:
         Initial rigid-body position (m or rad).
     apply_at : str
         Real time: commands act from their ``"arrival"`` or ``"send"`` time.
+    measurement : MeasurementMap or None
+        The channels published on ``measurements`` (None: the rigid-body position).
+    noise_std : tuple of float
+        White-noise standard deviation per channel (units of the channel).
+    noise_seed : int
+        Seed of that noise.
     """
 
     nominal: ModalModel
@@ -524,6 +580,9 @@ class PlantConfig:
     coulomb_force: float
     initial_position: float
     apply_at: str = "arrival"
+    measurement: MeasurementMap | None = None
+    noise_std: tuple[float, ...] = ()
+    noise_seed: int = 0
 
     @property
     def dt(self) -> float:
@@ -572,7 +631,15 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     apply_at = str(values.get("plant.apply_at", "arrival"))
     if apply_at not in ("arrival", "send"):
         raise ConfigError("plant.apply_at", f"must be 'arrival' or 'send', got {apply_at!r}")
+    measurement = measurement_map(values, n)
+    noise = noise_levels(values.get("plant.noise_std", 0.0), measurement.channels)
+    seed = values.get("plant.noise_seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError("plant.noise_seed", f"must be an integer >= 0, got {seed!r}")
     return PlantConfig(
+        measurement=measurement,
+        noise_std=tuple(float(x) for x in noise),
+        noise_seed=int(seed),
         apply_at=apply_at,
         nominal=nominal,
         model=model,

@@ -5,7 +5,10 @@
 Subscribes to ``commands`` (std_msgs/Float64MultiArray, first element = u)
 and publishes ``joint_states`` (sensor_msgs/JointState: ``rigid_body``,
 ``mode_1`` ... ``mode_N``; position and velocity of each; effort = the
-applied command on every joint) and its status on ``/diagnostics``.
+applied command on every joint), what its sensors read on ``measurements``
+(physical coordinates ``measurement.names``, with white noise
+``plant.noise_std``; :mod:`.plant_measurements`) and its status on
+``/diagnostics``.
 
 Integration is exact (zero-order hold, the core's matrix-exponential
 propagation :func:`core.simulation.step_matrices` of the simulated model; no
@@ -64,6 +67,7 @@ from .parameters import (
     plant_specs,
     validating_callback,
 )
+from .plant_measurements import MeasurementPublisher, stamp_from_ns
 from .runner import run
 
 NODE_NAME = "flexmotion_plant"
@@ -128,6 +132,7 @@ class PlantNode(Node):
         self.joint_names = ["rigid_body"] + list(cfg.model.names)
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
+        self._measure = MeasurementPublisher(self, cfg)  # 'measurements': the sensors (plant_measurements.py)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # commands one at a time, in order; the timers in their own groups
         self.create_subscription(
@@ -178,6 +183,8 @@ class PlantNode(Node):
             self._coulomb = simulate_coulomb if cfg.coulomb_force > 0.0 else None
             self._timeout_us = round(cfg.command_timeout / TIME_QUANTUM)
             self._stamp_key = "source_timestamp" if cfg.apply_at == "send" else "received_timestamp"
+            if hasattr(self, "_measure"):
+                self._measure.configure(cfg)
 
     # ----------------------------------------------------------- integration
     def _step(self, x: np.ndarray, h: float, u: float, h_key: int | None = None) -> np.ndarray:
@@ -262,6 +269,10 @@ class PlantNode(Node):
         with self._lock:
             self.received += 1
             if self.cfg.lockstep:
+                # y_k read just after u_k is applied, stamped with the command's send time (sample k's time)
+                sent = info.get("source_timestamp") if info else None
+                stamp = stamp_from_ns(sent) if sent else self.get_clock().now().to_msg()
+                self._measure.publish(self.x_event, u, stamp)
                 self.x = self.x_event = self._step(self.x_event, self.cfg.dt, u)
                 self.u = u
                 self.applied += 1
@@ -280,6 +291,7 @@ class PlantNode(Node):
             self.x = self._state_at(now)
             held = now <= self._cutoff()
             self._publish(self.u if held else 0.0)
+            self._measure.publish(self.x, self.u if held else 0.0, self.get_clock().now().to_msg())
             # the force is cut now: say so now (issue 16: the counter and the warning came 10 s later)
             reported = not held and self.u != 0.0 and self._note_timeout()
         if reported:
@@ -329,6 +341,9 @@ class PlantNode(Node):
                 # writer-side matches: a subscriber knows it will get every sample published from now on
                 "joint_states_subscribers": self._pub.get_subscription_count(),
                 "joint_states_published": self.published,
+                "measurements_subscribers": self._measure.subscription_count(),
+                "measurements_published": self._measure.published,
+                "measurement_channels": ", ".join(self._measure.map.names),
                 "diagnostics_subscribers": self._diag_pub.get_subscription_count(),
             }
         ok = DiagnosticStatus.OK
