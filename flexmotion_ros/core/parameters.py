@@ -226,6 +226,16 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         "a trajectory goal arriving before T*",
         choices=("refuse", "optimum"),
     ),
+    # identification on the machine (nodes/planner_identify.py, execution/learning.py)
+    _p("identification.band", DA, "[lo, hi] rad/s, 0 < lo < hi; empty: around the model's modes", "excitation band"),
+    _p("identification.modes", I, "integer in [-1, 8]; -1: the model's", "modes to identify"),
+    _p("identification.duration_s", D, "s, in [0, 120]; 0: 4 periods of the band's low end", "excitation length"),
+    _p("identification.adopt", B, "true or false", "~/identify adopts what the data contradict"),
+    _p("identification.learn_from_moves", B, "true or false", "refine the model from every move's record"),
+    _p("identification.ringdown_s", D, "s, in [0, 60]", "idle time recorded after a move before fitting"),
+    _p("identification.max_omega_interval", D, "fraction, in (0, 1]", "confident: 95 % half-width of omega below this"),
+    _p("identification.max_zeta_interval", D, "in (0, 1]", "confident: 95 % half-width of zeta below this"),
+    _p("identification.max_record_s", D, "s, in (0, 120]", "longest learning record"),
 )
 
 #: The measured channels (``core/model/measurement.py``): the same names in the planner's and the plant's file.

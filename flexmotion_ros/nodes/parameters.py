@@ -223,6 +223,7 @@ def planner_specs() -> list[Spec]:
         ),
         *_goal_specs(),
         *measurement_specs(),
+        *identification_specs(),
     ]
 
 
@@ -299,6 +300,72 @@ def measurement_specs() -> list[Spec]:
             "one per name: position (m), velocity (m/s) or acceleration (m/s^2, feeds the command through); "
             "empty: all position." + tail,
             read_only=True,
+        ),
+    ]
+
+
+def identification_specs() -> list[Spec]:
+    """``identification.*``: ``~/identify`` and learning from moves (:mod:`.planner_identify`)."""
+    tail = " A change applies to the next identification."
+    return [
+        Spec(
+            "identification.band",
+            Parameter.Type.DOUBLE_ARRAY,
+            "frequency band [lo, hi] (rad/s, 0 < lo < hi < 0.8 x pi x rate_hz) of the ~/identify excitation; empty: "
+            "half the lowest to 1.5 x the highest modal frequency." + tail,
+        ),
+        Spec(
+            "identification.modes",
+            -1,
+            "number of modes identified, in [0, 8]; -1: as many as the model has (a different count is never "
+            "adopted)." + tail,
+            int_range=(-1, 8),
+        ),
+        Spec(
+            "identification.duration_s",
+            0.0,
+            "length (s) of the ~/identify excitation (a quarter more of quiet tail follows), in [0, 120]; 0: four "
+            "periods of the band's low end." + tail,
+            fp_range=(0.0, 120.0),
+        ),
+        Spec(
+            "identification.adopt",
+            False,
+            "true: ~/identify adopts every model parameter the data contradict (its value outside the 95 % "
+            "interval) for the next goal, through these parameter services; false: it only reports." + tail,
+        ),
+        Spec(
+            "identification.learn_from_moves",
+            False,
+            "true: each move's commands and measurements (from a move from rest on, with the ringdown while idle) "
+            "refine the model when the estimate is confident (see identification.max_omega_interval).",
+        ),
+        Spec(
+            "identification.ringdown_s",
+            2.0,
+            "learning: idle time (s) recorded after a move before its record is fitted, in [0, 60].",
+            fp_range=(0.0, 60.0),
+        ),
+        Spec(
+            "identification.max_omega_interval",
+            0.01,
+            "confident: every identified frequency's 95 % half-width below this fraction of it, in (0, 1]; "
+            "otherwise nothing is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_zeta_interval",
+            0.01,
+            "confident: every identified damping ratio's 95 % half-width below this, in (0, 1]; otherwise nothing "
+            "is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_record_s",
+            60.0,
+            "learning: the longest record (s of samples) from a move from rest on, in (0, 120]; longer, a new one "
+            "starts at the next move from rest.",
+            fp_range=(0.0, 120.0),
         ),
     ]
 
