@@ -63,6 +63,7 @@ METHOD_NAMES: tuple[str, ...] = (
     "fixed_time",
     "min_fuel",
     "limited",
+    "auto_robust",
 )
 
 DEFAULTS: dict[str, Any] = {

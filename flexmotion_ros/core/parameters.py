@@ -146,6 +146,7 @@ CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
 
 _SHAPERS = tuple(SHAPERS)
 _ROBUST = ("robust_time_optimal",)
+_AUTO = ("auto_robust",)
 
 #: Options of the planning methods (``PlannerConfig.options``).
 METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
@@ -163,7 +164,7 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
         D,
         "fraction, in (0, 1), default 0.05",
         "tolerance of the reported insensitivity",
-        methods=_SHAPERS + _ROBUST,
+        methods=_SHAPERS + _ROBUST + _AUTO,
     ),
     _p("robust_order", I, "integer, 0..4, default 1", "derivative order of robust_time_optimal", methods=_ROBUST),
     _p(
@@ -201,6 +202,21 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
     ),
     _p("limits.slew_rate", D, "N/s, > 0", "command slew-rate limit", methods=("limited",)),
     _p("limits.report_each", B, "true or false", "also plan with each limit alone", methods=("limited",)),
+    _p("auto_robust.omega_min", DA, "rad/s, one per mode, > 0", "lowest frequency of each mode", methods=_AUTO),
+    _p(
+        "auto_robust.omega_max",
+        DA,
+        "rad/s, one per mode, >= omega_min",
+        "highest frequency of each mode",
+        methods=_AUTO,
+    ),
+    _p(
+        "auto_robust.relative_error",
+        D,
+        "fraction, in [0, 1), default 0.02",
+        "frequency interval omega (1 +- this) when omega_min/max are unset",
+        methods=_AUTO,
+    ),
 )
 
 #: Parameters of ``flexmotion_planner`` that are not part of the configuration (add new ones here).

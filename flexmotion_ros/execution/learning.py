@@ -383,6 +383,9 @@ class ModelUpdate:
         Every interval is within the thresholds.
     reason : str
         Why not confident ("" if confident).
+    parameters : dict
+        What to set: the changed ``model.*`` and the frequency intervals
+        ``auto_robust.omega_min`` / ``auto_robust.omega_max`` (rad/s) that method ``auto_robust`` covers.
     """
 
     model: ModalModel
@@ -424,9 +427,11 @@ def model_update(current: ModalModel, result: IdentificationResult, settings: Id
             )
     order = np.argsort(current.omega)  # identified modes come sorted by frequency
     omega, zeta = list(current.omega), list(current.zeta)
+    lo, hi = [0.0] * len(omega), [0.0] * len(omega)
     changes = []
     for k, i in enumerate(order):
         m = result.modes[k]
+        lo[i], hi[i] = (max(float(x), 1e-12) for x in m.omega.interval)
         if not m.omega.contains(omega[i]):
             changes.append(
                 f"omega[{i}] {omega[i]:.6g} -> {m.omega.value:.6g} rad/s (95 %: {m.omega.interval[0]:.6g}.."
@@ -449,12 +454,17 @@ def model_update(current: ModalModel, result: IdentificationResult, settings: Id
         changes.append(f"c {c:.4g} -> {min(result.c.value, 0.0):.4g} 1/s")
         c = min(result.c.value, 0.0)
     model = current.with_changes(b0=b0, c=c, omega=tuple(omega), zeta=tuple(zeta))
-    params = {
-        "model.b0": model.b0,
-        "model.c": model.c,
-        "model.omega": list(model.omega),
-        "model.zeta": list(model.zeta),
-    }
+    params: dict[str, Any] = {}
+    if model.omega != current.omega:
+        params["model.omega"] = list(model.omega)
+    if model.zeta != current.zeta:
+        params["model.zeta"] = list(model.zeta)
+    if model.b0 != current.b0:
+        params["model.b0"] = model.b0
+    if model.c != current.c:
+        params["model.c"] = model.c
+    if lo:  # the frequencies' 95 % intervals: what method auto_robust must be insensitive over
+        params.update({"auto_robust.omega_min": lo, "auto_robust.omega_max": hi})
     return ModelUpdate(
         model=model, changes=tuple(changes), confident=not reasons, reason="; ".join(reasons), parameters=params
     )

@@ -361,14 +361,19 @@ class IdentifyHandling:
         """Set the changed model.* parameters through the node's own validated path; the outcome in words."""
         if not update.confident:
             return f"not adopted: not confident ({update.reason})"
-        if not update.changes:
-            return "nothing adopted: the data agree with the model"
         params = [Parameter(k, value=v) for k, v in update.parameters.items()]
-        result = self.set_parameters_atomically(params)
-        if not result.successful:
+        result = self.set_parameters_atomically(params) if params else None
+        if result is not None and not result.successful:
             return f"not adopted: the parameters were refused ({result.reason})"
+        intervals = (
+            "; auto_robust.omega_min/max set to the 95 % intervals"
+            if "auto_robust.omega_min" in update.parameters
+            else ""
+        )
+        if not update.changes:
+            return "nothing adopted: the data agree with the model" + intervals
         self._ident_status["learned_updates"] = int(self._ident_status.get("learned_updates", 0)) + 1
-        return "adopted for the next goal: " + ", ".join(update.changes)
+        return "adopted for the next goal: " + ", ".join(update.changes) + intervals
 
     # ------------------------------------------------------------- learning
     def _learn_loop(self) -> None:

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 from rcl_interfaces.srv import GetParameters
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -106,16 +107,27 @@ def test_identify_then_the_next_move_leaves_no_swing(ros):
     client = ros.probe.create_client(GetParameters, "flexmotion_planner/get_parameters")
     got = ros.call(client, GetParameters.Request(names=["model.omega", "model.zeta"]))
     assert list(got.values[0].double_array_value) == [omega] and list(got.values[1].double_array_value) == [zeta]
-    status = ros.probe.planner_status()
     wait_for(
         lambda: "identified" in (ros.probe.planner_status() or (0, "", {}))[2].get("identification", ""),
         5.0,
         "the result on /diagnostics",
     )
+    # the 95 % intervals go to method auto_robust: so narrow that the time-optimal move covers them
+    lo, hi = (
+        planner.get_parameter("auto_robust.omega_min").value[0],
+        planner.get_parameter("auto_robust.omega_max").value[0],
+    )
+    assert lo < omega < hi and hi - lo < 1e-3 * omega
+    assert planner.set_parameters([Parameter("method", value="auto_robust")])[0].successful
     after = move(ros, planner, plant, 2.0)
     assert after < 0.005, (before, after, resp.message)
+    assert planner.installed[-1].info.result.info["chosen_method"] == "time_optimal"
+    wait_for(
+        lambda: (ros.probe.planner_status() or (0, "", {}))[2].get("last_plan.chosen_method") == "time_optimal",
+        5.0,
+        "the choice on /diagnostics",
+    )
     print(f"residual before {before:.3f}, after {after:.2e}; ~/identify took {took:.1f} s: {resp.message}")
-    del status
 
 
 def test_learning_from_moves_converges_within_three_moves(ros):
