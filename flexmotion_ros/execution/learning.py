@@ -378,7 +378,7 @@ class ModelUpdate:
     model : ModalModel
         The model to plan with (the current one where the data agree with it).
     changes : tuple of str
-        One line per changed parameter (old -> new, the 95 % interval).
+        One line per changed parameter (old -> new +- the 95 % half-width).
     confident : bool
         Every interval is within the thresholds.
     reason : str
@@ -433,22 +433,15 @@ def model_update(current: ModalModel, result: IdentificationResult, settings: Id
         m = result.modes[k]
         lo[i], hi[i] = (max(float(x), 1e-12) for x in m.omega.interval)
         if not m.omega.contains(omega[i]):
-            changes.append(
-                f"omega[{i}] {omega[i]:.6g} -> {m.omega.value:.6g} rad/s (95 %: {m.omega.interval[0]:.6g}.."
-                f"{m.omega.interval[1]:.6g})"
-            )
+            changes.append(f"omega[{i}] {omega[i]:.7g} -> {m.omega.value:.7g} +- {_half(m.omega):.2g} rad/s")
             omega[i] = m.omega.value
         if not m.zeta.contains(zeta[i]):
             z = min(max(m.zeta.value, 0.0), MAX_MODEL_ZETA)
-            changes.append(
-                f"zeta[{i}] {zeta[i]:.4g} -> {z:.4g} (95 %: {m.zeta.interval[0]:.4g}..{m.zeta.interval[1]:.4g})"
-            )
+            changes.append(f"zeta[{i}] {zeta[i]:.5g} -> {z:.5g} +- {_half(m.zeta):.2g}")
             zeta[i] = z
     b0, c = current.b0, current.c
     if not result.b0.contains(b0):
-        changes.append(
-            f"b0 {b0:.6g} -> {result.b0.value:.6g} (95 %: {result.b0.interval[0]:.6g}..{result.b0.interval[1]:.6g})"
-        )
+        changes.append(f"b0 {b0:.7g} -> {result.b0.value:.7g} +- {_half(result.b0):.2g}")
         b0 = result.b0.value
     if not result.c.contains(c) and min(result.c.value, 0.0) != c:
         changes.append(f"c {c:.4g} -> {min(result.c.value, 0.0):.4g} 1/s")
@@ -471,16 +464,16 @@ def model_update(current: ModalModel, result: IdentificationResult, settings: Id
 
 
 def summary(result: IdentificationResult) -> str:
-    """One line with the numbers: each mode's frequency and damping with their 95 % intervals, b0, noise, fit."""
+    """One line with the numbers: each mode's frequency and damping +- their 95 % half-widths, b0, noise, fit."""
     modes = "; ".join(
-        f"mode {i}: omega {m.omega.value:.6g} rad/s [{m.omega.interval[0]:.6g}, {m.omega.interval[1]:.6g}], "
-        f"zeta {m.zeta.value:.4g} [{m.zeta.interval[0]:.4g}, {m.zeta.interval[1]:.4g}]"
+        f"mode {i}: omega {m.omega.value:.7g} +- {_half(m.omega):.2g} rad/s, zeta {m.zeta.value:.5g} +- "
+        f"{_half(m.zeta):.2g}"
         for i, m in enumerate(result.modes)
     )
     return (
-        f"{modes}{'; ' if modes else ''}b0 {result.b0.value:.6g} [{result.b0.interval[0]:.6g}, "
-        f"{result.b0.interval[1]:.6g}], c {result.c.value:.3g}; noise {result.noise_std:.3g}, fit "
-        f"{result.outputs[0].fit_percent:.2f} %, {result.samples} samples, {result.solve_time_s:.2f} s"
+        f"{modes}{'; ' if modes else ''}b0 {result.b0.value:.7g} +- {_half(result.b0):.2g}, c "
+        f"{result.c.value:.3g} +- {_half(result.c):.2g} (95 % intervals); noise {result.noise_std:.3g}, fit "
+        f"{result.outputs[0].fit_percent:.2f} %, {result.samples} samples, fitted in {result.solve_time_s:.2f} s"
     )
 
 
