@@ -67,6 +67,8 @@ from .plant_measurements import MEASUREMENT_QOS, TOPIC
 
 #: After the excitation's last command, readings may still be in flight this long (s) beyond ``state.timeout_s``.
 READINGS_GRACE_S = 2.0
+#: ``~/identify`` waits this long (s) for its new ``measurements`` subscription to match a publisher.
+MATCH_WAIT_S = 2.0
 #: The learner checks for an idle machine this often (s).
 LEARN_POLL_S = 0.05
 
@@ -96,7 +98,7 @@ class MeasurementListener:
             use_global_arguments=False,
             start_parameter_services=False,
         )
-        self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
+        self._sub = self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
         self._executor = SingleThreadedExecutor(context=owner.context)
         self._executor.add_node(self._node)
         self._thread = threading.Thread(target=self._spin, name="flexmotion-measurements", daemon=True)
@@ -121,8 +123,8 @@ class MeasurementListener:
         self.log.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, values)
 
     def publisher_count(self) -> int:
-        """Publishers matched on ``measurements``."""
-        return self._node.count_publishers(self.topic)
+        """Publishers matched with this subscription of ``measurements``."""
+        return self._sub.get_publisher_count()
 
     def close(self) -> None:
         self._executor.shutdown(timeout_sec=1.0)
@@ -145,7 +147,9 @@ class IdentifyHandling:
         capacity = int(math.ceil(RECORD_CAPACITY_S * self._config.rate_hz)) + 1
         self._sent_log = SignalLog(capacity, 1)
         self._readings = SignalLog(capacity, self._mmap.channels)
-        self._measurements = MeasurementListener(self, self._mmap.names, self._readings)
+        self._measurements: MeasurementListener | None = None
+        self._listener_lock = threading.Lock()
+        self._identifying = False
         self._ident_lock = threading.Lock()
         self._ident_status: dict[str, Any] = {"identification": "none yet", "learned_updates": 0}
         #: The learning record: index of its first command in the sent log (None: no record).
@@ -158,7 +162,19 @@ class IdentifyHandling:
         self._learn_stop = threading.Event()
         self._learner = threading.Thread(target=self._learn_loop, name="flexmotion-learn", daemon=True)
         self._learner.start()
+        self._listen_as_needed()
         self.create_service(Trigger, "~/identify", self._on_identify, callback_group=ReentrantCallbackGroup())
+
+    def _listen_as_needed(self) -> MeasurementListener | None:
+        """Subscribe to ``measurements`` only while learning or identifying (a 1 kHz callback costs the stream)."""
+        with self._listener_lock:
+            wanted = self._ident.learn_from_moves or self._identifying
+            if wanted and self._measurements is None:
+                self._measurements = MeasurementListener(self, self._mmap.names, self._readings)
+            elif not wanted and self._measurements is not None:
+                listener, self._measurements = self._measurements, None
+                listener.close()
+            return self._measurements
 
     def _close_identification(self) -> None:
         """Stop the learner and the listener (cleanup, destroy)."""
@@ -166,13 +182,16 @@ class IdentifyHandling:
         if stop is not None:
             stop.set()
             self._learner.join(timeout=5.0)
-        listener = getattr(self, "_measurements", None)
-        if listener is not None:
-            self._measurements = None
-            listener.close()
+        lock = getattr(self, "_listener_lock", None)
+        if lock is not None:
+            with lock:
+                listener, self._measurements = self._measurements, None
+            if listener is not None:
+                listener.close()
 
     def _apply_identification(self, v: dict[str, Any]) -> None:
         self._ident = identification_settings(v)
+        self._listen_as_needed()
 
     def _identification_values(self) -> dict[str, Any]:
         """Values on /diagnostics."""
@@ -235,12 +254,15 @@ class IdentifyHandling:
         if not self._ident_lock.acquire(blocking=False):
             return self._ident_refuse("an identification is already running")
         try:
+            self._identifying = True
             return self._identify()
         except _Refused as exc:
             return self._ident_refuse(str(exc))
         except FlexmotionError as exc:
             return self._ident_refuse(str(exc))
         finally:
+            self._identifying = False
+            self._listen_as_needed()
             self._ident_lock.release()
 
     def _ident_refuse(self, reason: str) -> tuple[bool, str]:
@@ -266,8 +288,14 @@ class IdentifyHandling:
                 f"not at rest: velocity {x0[1]:.3g}, largest modal amplitude {amp:.3g} (allowed {REST_TOL:g}); "
                 "wait for the machine to settle (or ~/stop it)"
             )
-        if self._measurements.publisher_count() == 0:
-            raise _Refused(f"measurements: no publisher on {self._measurements.topic!r}: nothing to record")
+        listener = self._listen_as_needed()
+        end = time.monotonic() + MATCH_WAIT_S
+        while listener.publisher_count() == 0:
+            if time.monotonic() > end:
+                raise _Refused(
+                    f"measurements: no publisher on {listener.topic!r} matched within {MATCH_WAIT_S:g} s: nothing to record"
+                )
+            time.sleep(0.01)
         return x0
 
     def _identify(self) -> tuple[bool, str]:
