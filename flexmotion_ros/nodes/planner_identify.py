@@ -37,11 +37,8 @@ from typing import Any
 
 import numpy as np
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..core.errors import FlexmotionError
@@ -49,21 +46,19 @@ from ..core.identification.excitation import design_excitation
 from ..core.model.measurement import MeasurementMap, measurement_map
 from ..core.simulation.exact import modal_amplitudes, simulate_samples
 from ..execution.learning import (
-    RECORD_CAPACITY_S,
     REST_TOL,
     ExcitationRecord,
     IdentificationSettings,
-    SignalLog,
     default_band,
     fit_record,
     identification_settings,
     model_update,
-    paired_record,
     summary,
 )
+from ..execution.records import RECORD_CAPACITY_S, SignalLog, paired_record
 from ..execution.timeline import Segment
+from .measurement_listener import MeasurementListener
 from .planner_goals import MoveRecord
-from .plant_measurements import MEASUREMENT_QOS, TOPIC
 
 #: After the excitation's last command, readings may still be in flight this long (s) beyond ``state.timeout_s``.
 READINGS_GRACE_S = 2.0
@@ -71,65 +66,6 @@ READINGS_GRACE_S = 2.0
 MATCH_WAIT_S = 2.0
 #: The learner checks for an idle machine this often (s).
 LEARN_POLL_S = 0.05
-
-
-class MeasurementListener:
-    """``measurements`` on an internal node and executor of its own; each reading goes into ``log``.
-
-    Parameters
-    ----------
-    owner : Node
-        The planner (context, namespace, remappings).
-    names : tuple of str
-        ``measurement.names``: the columns of ``log`` (a message's channels are put in this order).
-    log : SignalLog
-        Where the readings go (stamp ns, values).
-    """
-
-    def __init__(self, owner: Node, names: tuple[str, ...], log) -> None:
-        self.log = log
-        self.names = tuple(names)
-        self.mismatched = 0  # messages whose names are not measurement.names
-        self.topic = owner.resolve_topic_name(TOPIC)
-        self._node = Node(
-            f"{owner.get_name()}_measurements",
-            namespace=owner.get_namespace(),
-            context=owner.context,
-            use_global_arguments=False,
-            start_parameter_services=False,
-        )
-        self._sub = self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
-        self._executor = SingleThreadedExecutor(context=owner.context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="flexmotion-measurements", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:  # noqa: BLE001 -- context shut down under us: nothing more to receive
-            pass
-
-    def _on(self, msg: JointState) -> None:
-        names = tuple(msg.name)
-        if names == self.names:
-            values = msg.position
-        else:
-            index = {n: i for i, n in enumerate(names)}
-            if not all(n in index for n in self.names) or len(msg.position) != len(names):
-                self.mismatched += 1
-                return
-            values = [msg.position[index[n]] for n in self.names]
-        self.log.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, values)
-
-    def publisher_count(self) -> int:
-        """Publishers matched with this subscription of ``measurements``."""
-        return self._sub.get_publisher_count()
-
-    def close(self) -> None:
-        self._executor.shutdown(timeout_sec=1.0)
-        self._thread.join(timeout=2.0)
-        self._node.destroy_node()
 
 
 class _Refused(Exception):
@@ -466,4 +402,4 @@ class IdentifyHandling:
         self.publish_diagnostics()
 
 
-__all__ = ["IdentifyHandling", "MeasurementListener"]
+__all__ = ["IdentifyHandling"]
