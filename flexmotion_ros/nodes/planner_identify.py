@@ -314,8 +314,13 @@ class IdentifyHandling:
 
     def _wait_readings(self, last: int) -> None:
         """Until a reading stamped at or after command ``last`` was sent arrives (a lagging plant), or time out."""
-        t_last = int(self._sent_log.rows(last, last)[0][0])
         end = time.monotonic() + self._state.timeout_s + READINGS_GRACE_S
+        # the stream goes idle as it takes the closing hold, just before it publishes (and logs) it
+        while self._sent_log.count <= last:
+            if time.monotonic() > end:
+                raise _Refused("the excitation's closing hold was not sent")
+            time.sleep(0.001)
+        t_last = int(self._sent_log.rows(last, last)[0][0])
         while self._readings.first_at_or_after(t_last) >= self._readings.count:
             if time.monotonic() > end:
                 return  # paired_record says what is missing

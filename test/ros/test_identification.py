@@ -188,3 +188,14 @@ def test_a_stop_cuts_the_excitation_off_with_the_hold_and_nothing_is_adopted(ros
     time.sleep(0.2)
     assert ros.probe.command_values()[-1] == 0.0  # the hold
     assert planner.get_parameter("model.omega").value[0] == 10.0  # nothing adopted
+
+
+def test_a_fit_the_data_cannot_support_is_refused_with_the_cores_reason(ros):
+    """Two modes asked of a one-mode machine: the core's one-line refusal, nothing adopted."""
+    planner, plant = setup(
+        ros, **{"identification.adopt": True, "identification.modes": 2, "identification.duration_s": 1.5}
+    )
+    resp = ros.call(ros.probe.create_client(Trigger, "flexmotion_planner/identify"), Trigger.Request(), 30.0)
+    assert not resp.success and resp.message.startswith("data.input: does not show mode 1"), resp.message
+    assert "\n" not in resp.message
+    assert planner.get_parameter("model.omega").value[0] == 10.0
