@@ -92,7 +92,7 @@ class ParameterInfo:
     alternatives : tuple of ParameterType
         Other ROS types accepted (``model.b0``, ``model.c``, ``u_max``: a double
         for one input, a double array for several; the nodes declare them with
-        dynamic typing).
+        dynamic typing; ``plant.noise_std``: one level or one per channel).
     """
 
     name: str
@@ -171,6 +171,7 @@ CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
 
 _SHAPERS = tuple(SHAPERS)
 _ROBUST = ("robust_time_optimal",)
+_AUTO = ("auto_robust",)
 
 #: Options of the planning methods (``PlannerConfig.options``).
 METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
@@ -188,7 +189,7 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
         D,
         "fraction, in (0, 1), default 0.05",
         "tolerance of the reported insensitivity",
-        methods=_SHAPERS + _ROBUST,
+        methods=_SHAPERS + _ROBUST + _AUTO,
     ),
     _p("robust_order", I, "integer, 0..4, default 1", "derivative order of robust_time_optimal", methods=_ROBUST),
     _p(
@@ -226,6 +227,21 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
     ),
     _p("limits.slew_rate", D, "N/s, > 0", "command slew-rate limit", methods=("limited",)),
     _p("limits.report_each", B, "true or false", "also plan with each limit alone", methods=("limited",)),
+    _p("auto_robust.omega_min", DA, "rad/s, one per mode, > 0", "lowest frequency of each mode", methods=_AUTO),
+    _p(
+        "auto_robust.omega_max",
+        DA,
+        "rad/s, one per mode, >= omega_min",
+        "highest frequency of each mode",
+        methods=_AUTO,
+    ),
+    _p(
+        "auto_robust.relative_error",
+        D,
+        "fraction, in [0, 1), default 0.02",
+        "frequency interval omega (1 +- this) when omega_min/max are unset",
+        methods=_AUTO,
+    ),
 )
 
 #: Parameters of ``flexmotion_planner`` that are not part of the configuration (add new ones here).
@@ -258,6 +274,33 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         "a trajectory goal arriving before T*",
         choices=("refuse", "optimum"),
     ),
+    # identification on the machine (nodes/planner_identify.py, execution/learning.py)
+    _p("identification.band", DA, "[lo, hi] rad/s, 0 < lo < hi; empty: around the model's modes", "excitation band"),
+    _p("identification.modes", I, "integer in [-1, 8]; -1: the model's", "modes to identify"),
+    _p("identification.duration_s", D, "s, in [0, 120]; 0: 4 periods of the band's low end", "excitation length"),
+    _p("identification.adopt", B, "true or false", "~/identify adopts what the data contradict"),
+    _p("identification.learn_from_moves", B, "true or false", "refine the model from every move's record"),
+    _p("identification.ringdown_s", D, "s, in [0, 60]", "idle time recorded after a move before fitting"),
+    _p("identification.max_omega_interval", D, "fraction, in (0, 1]", "confident: 95 % half-width of omega below this"),
+    _p("identification.max_zeta_interval", D, "in (0, 1]", "confident: 95 % half-width of zeta below this"),
+    _p("identification.max_record_s", D, "s, in (0, 120]", "longest learning record"),
+)
+
+#: The measured channels (``core/model/measurement.py``): the same names in the planner's and the plant's file.
+MEASUREMENT_PARAMETERS: tuple[ParameterInfo, ...] = (
+    _p("measurement.names", SA, "unique physical coordinate names", "channels of the plant's measurements topic"),
+    _p(
+        "measurement.map",
+        DA,
+        "row-major, len(measurement.names) x (rigid bodies + modes)",
+        "y = map @ [p, q_1, ..., q_N] (positions; velocities and accelerations likewise)",
+    ),
+    _p(
+        "measurement.kinds",
+        SA,
+        "one per name: position, velocity or acceleration; default position",
+        "what each channel reads",
+    ),
 )
 
 #: Parameters of ``flexmotion_plant`` (add new ones here).
@@ -277,6 +320,14 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         alternatives=(DA,),
     ),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
+    _p(
+        "plant.noise_std",
+        D,
+        "units of each channel, >= 0: one value or one per measured channel",
+        "white noise on the measurements topic",
+        alternatives=(DA,),
+    ),
+    _p("plant.noise_seed", I, "integer >= 0", "seed of the measurement noise"),
 )
 
 #: Parameters rclpy declares on every node.
@@ -291,12 +342,19 @@ KNOWN_PREFIXES: tuple[str, ...] = ("qos_overrides.", "design.")
 #: Every known parameter by name.
 KNOWN: dict[str, ParameterInfo] = {
     p.name: p
-    for p in CONFIG_PARAMETERS + METHOD_OPTIONS + PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS
+    for p in CONFIG_PARAMETERS
+    + METHOD_OPTIONS
+    + PLANNER_NODE_PARAMETERS
+    + PLANT_NODE_PARAMETERS
+    + MEASUREMENT_PARAMETERS
+    + ROS_PARAMETERS
 }
 #: Names of the method options.
 OPTION_NAMES: frozenset[str] = frozenset(p.name for p in METHOD_OPTIONS)
 #: Names that are neither configuration nor method options (nodes, rclpy).
-NODE_NAMES: frozenset[str] = frozenset(p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS)
+NODE_NAMES: frozenset[str] = frozenset(
+    p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + MEASUREMENT_PARAMETERS + ROS_PARAMETERS
+)
 
 
 def option(name: str) -> ParameterInfo:

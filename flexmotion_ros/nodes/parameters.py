@@ -49,6 +49,7 @@ from rclpy.parameter import Parameter
 from ..core.config import DEFAULTS
 from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
+from ..core.model.measurement import MeasurementMap, measurement_map, noise_levels
 from ..core.multi_input.config import MultiPlannerConfig
 from ..core.multi_input.dispatch import AnyConfig, AnyModel, config_from_any
 from ..core.multi_input.model import MultiModel
@@ -275,6 +276,8 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.01, 3600.0),
         ),
         *_goal_specs(),
+        *measurement_specs(),
+        *identification_specs(),
     ]
 
 
@@ -330,6 +333,100 @@ def _goal_specs() -> list[Spec]:
             "a ~/joint_trajectory whose last time_from_start is before the time-optimal arrival: 'refuse' it, or "
             "take the 'optimum' (arrive as fast as possible). Fixed at start-up.",
             read_only=True,
+        ),
+    ]
+
+
+def measurement_specs() -> list[Spec]:
+    """``measurement.*``: the machine's measured channels (:mod:`flexmotion_ros.core.model.measurement`)."""
+    tail = " Fixed at start-up."
+    return [
+        Spec(
+            "measurement.names",
+            Parameter.Type.STRING_ARRAY,
+            "physical coordinate names of the channels on 'measurements' (sensor_msgs/JointState), unique; empty: "
+            "the rigid-body position only." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.map",
+            Parameter.Type.DOUBLE_ARRAY,
+            "row-major len(measurement.names) x (1 + modes): y = map @ [p, q_1, ..., q_N] (velocity and "
+            "acceleration channels: the same row on the derivatives)." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.kinds",
+            Parameter.Type.STRING_ARRAY,
+            "one per name: position (m), velocity (m/s) or acceleration (m/s^2, feeds the command through); "
+            "empty: all position." + tail,
+            read_only=True,
+        ),
+    ]
+
+
+def identification_specs() -> list[Spec]:
+    """``identification.*``: ``~/identify`` and learning from moves (:mod:`.planner_identify`)."""
+    tail = " A change applies to the next identification."
+    return [
+        Spec(
+            "identification.band",
+            Parameter.Type.DOUBLE_ARRAY,
+            "frequency band [lo, hi] (rad/s, 0 < lo < hi < 0.8 x pi x rate_hz) of the ~/identify excitation; empty: "
+            "half the lowest to 1.5 x the highest modal frequency." + tail,
+        ),
+        Spec(
+            "identification.modes",
+            -1,
+            "number of modes identified, in [0, 8]; -1: as many as the model has (a different count is never "
+            "adopted)." + tail,
+            int_range=(-1, 8),
+        ),
+        Spec(
+            "identification.duration_s",
+            0.0,
+            "length (s) of the ~/identify excitation (a quarter more of quiet tail follows), in [0, 120]; 0: four "
+            "periods of the band's low end." + tail,
+            fp_range=(0.0, 120.0),
+        ),
+        Spec(
+            "identification.adopt",
+            False,
+            "true: ~/identify adopts every model parameter the data contradict (its value outside the 95 % "
+            "interval) for the next goal, through these parameter services; false: it only reports." + tail,
+        ),
+        Spec(
+            "identification.learn_from_moves",
+            False,
+            "true: each move's commands and measurements (from a move from rest on, with the ringdown while idle) "
+            "refine the model when the estimate is confident (see identification.max_omega_interval).",
+        ),
+        Spec(
+            "identification.ringdown_s",
+            2.0,
+            "learning: idle time (s) recorded after a move before its record is fitted, in [0, 60].",
+            fp_range=(0.0, 60.0),
+        ),
+        Spec(
+            "identification.max_omega_interval",
+            0.01,
+            "confident: every identified frequency's 95 % half-width below this fraction of it, in (0, 1]; "
+            "otherwise nothing is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_zeta_interval",
+            0.01,
+            "confident: every identified damping ratio's 95 % half-width below this, in (0, 1]; otherwise nothing "
+            "is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_record_s",
+            60.0,
+            "learning: the longest record (s of samples) from a move from rest on, in (0, 120]; longer, a new one "
+            "starts at the next move from rest.",
+            fp_range=(0.0, 120.0),
         ),
     ]
 
@@ -424,6 +521,23 @@ def plant_specs() -> list[Spec]:
             "Fixed at start-up.",
             read_only=True,
             fp_range=(0.0, 3600.0),
+        ),
+        *measurement_specs(),
+        Spec(
+            "plant.noise_std",
+            0.0,
+            "white noise (standard deviation, units of each channel: m, m/s, m/s^2) added to 'measurements': one "
+            "value for every channel or one per channel (a double array), each >= 0; 0: exact readings. Fixed at "
+            "start-up.",
+            read_only=True,
+            dynamic=True,
+        ),
+        Spec(
+            "plant.noise_seed",
+            0,
+            "seed of the measurement noise (integer >= 0): the same seed gives the same noise. Fixed at start-up.",
+            read_only=True,
+            int_range=(0, 2**62),
         ),
     ]
 
@@ -586,6 +700,12 @@ class PlantConfig:
         Initial rigid-body position (m or rad); one per rigid body for a multi-input model.
     apply_at : str
         Real time: commands act from their ``"arrival"`` or ``"send"`` time.
+    measurement : MeasurementMap or None
+        The channels published on ``measurements`` (None: the rigid-body position).
+    noise_std : tuple of float
+        White-noise standard deviation per channel (units of the channel).
+    noise_seed : int
+        Seed of that noise.
     """
 
     nominal: AnyModel
@@ -596,6 +716,9 @@ class PlantConfig:
     coulomb_force: float
     initial_position: Any
     apply_at: str = "arrival"
+    measurement: MeasurementMap | None = None
+    noise_std: tuple[float, ...] = ()
+    noise_seed: int = 0
 
     @property
     def dt(self) -> float:
@@ -684,7 +807,17 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     apply_at = str(values.get("plant.apply_at", "arrival"))
     if apply_at not in ("arrival", "send"):
         raise ConfigError("plant.apply_at", f"must be 'arrival' or 'send', got {apply_at!r}")
+    # the default map reads every rigid body's position (named as the model names them)
+    rigid_names = tuple(nominal.rigid_bodies) if isinstance(nominal, MultiModel) else ("rigid_body",)
+    measurement = measurement_map(values, n, rigid_names)
+    noise = noise_levels(values.get("plant.noise_std", 0.0), measurement.channels)
+    seed = values.get("plant.noise_seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError("plant.noise_seed", f"must be an integer >= 0, got {seed!r}")
     return PlantConfig(
+        measurement=measurement,
+        noise_std=tuple(float(x) for x in noise),
+        noise_seed=int(seed),
         apply_at=apply_at,
         nominal=nominal,
         model=model,

@@ -119,6 +119,7 @@ from ..execution import (
     PLAN_TIME_WINDOW,
     Segment,
 )
+from ..execution.learning import identification_settings
 from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
 from ..execution.requests import RequestWorker
@@ -135,6 +136,7 @@ from .parameters import (
     validating_callback,
 )
 from .planner_goals import GoalHandling
+from .planner_identify import IdentifyHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .planner_stops import StopHandling
@@ -159,7 +161,7 @@ LATCHED_QOS = QoSProfile(
 )
 
 
-class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
+class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
     Parameters
@@ -296,6 +298,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=requests)
 
         self._make_stream(v, rate)
+        self._setup_identification(v)  # ~/identify, measurements, learning (planner_identify.py)
         self._worker.start()
         # A full garbage collection over everything imported (rclpy, scipy, ...) takes
         # ~100 ms on a loaded machine and holds the GIL: measured as a 100 ms hole in
@@ -339,6 +342,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         if listener is not None:
             self._listener = None
             listener.close()
+        self._close_identification()
         super().destroy_node()
         # Jazzy's LifecycleNode leaves its state machine alive, and it holds the rcl node: the node, and
         # with the last node of a context its DDS participant, lived on until the garbage collector found
@@ -368,6 +372,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
                     "the inputs and rigid bodies are fixed at start-up (the layout of 'commands' and of the measured "
                     "state): restart the planner with the new parameter file",
                 )
+        identification_settings(candidate)
 
     def _apply_parameters(self, params) -> None:
         if self._lifecycle not in ("inactive", "active"):
@@ -378,6 +383,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self._max_points = int(v["max_trajectory_points"])
         self._frame_id = str(v["frame_id"])
         self.stream.hold_when_idle = bool(v["publish_hold_when_idle"])
+        self._apply_identification(v)
         changed = ", ".join(f"{p.name}={messages._text(p.value)}" for p in params)
         self.get_logger().info(f"parameters set ({changed}); the next goal uses them")
 
@@ -406,6 +412,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
             "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
+            **self._identification_values(),
         }
 
     def _check_streaming_ready(self) -> None:

@@ -33,6 +33,7 @@ class StreamGlue:
         hold = [0.0] * m
 
         def publish(value) -> None:
+            self._record_sent(value)  # the commands actually sent, for identification (planner_identify.py)
             if m == 1:
                 msg.data[0] = value
             else:  # a row of m values, or the hold (HOLD: zero on every input)
@@ -93,6 +94,7 @@ class StreamGlue:
         return now_ros + (self.stream.time_of(k) - time.monotonic())
 
     def _on_segment_start(self, seg: Segment) -> None:
+        self._identification_segment_started(seg)
         rec = seg.info
         if isinstance(rec, MoveRecord) and rec.from_idle:
             self._sent_at_start = self.stream.samples_sent - 1
@@ -100,6 +102,7 @@ class StreamGlue:
             self._status.first_command(seg.started_at - rec.requested_at)
 
     def _on_move_finished(self, seg: Segment) -> None:
+        self._identification_move_ended()
         # called in the stream thread: the statistics, the log line and /diagnostics go to the status
         # thread (measured: done here, they delayed the next samples by tens of ms under load)
         n, sent = self.stream.samples_sent - self._sent_at_start, self.stream.samples_sent
