@@ -52,6 +52,11 @@ LOG_TOL = 1e-2
 POINTS_PER_HALF_PERIOD = 4
 #: ... and at least this many.
 MIN_POINTS = 32
+#: The lean path is for models with at most this many modes: with 5-8 modes its
+#: coarse guess often misses the structure, and the failed attempt cost more than
+#: it saved (``bench/planner_latency.py --lean-ab``: the 8-mode 0.56 m move took
+#: 8.9 ms without it, 21.6 ms with it, the fast path answering either way).
+MAX_MODES = 3
 #: The lean path is for moves whose warm-start grid has at most this many points
 #: (longer moves: the fast path's own grid rules apply).
 MAX_POINTS = 4096

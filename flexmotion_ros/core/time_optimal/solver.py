@@ -55,6 +55,7 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
 from .certificate import certify
 from .fallbacks import cluster_fallback, structure_fallback
+from .lean import MAX_MODES as LEAN_MAX_MODES
 from .lean import MAX_POINTS as LEAN_MAX_POINTS
 from .lean import LeanMove, smoothed_guess, structure_from_samples
 from .lean import refine as lean_refine
@@ -413,9 +414,11 @@ def _lean_path(
     the structure corrections of :func:`~.structure_guess.newton_from_guess`,
     and the same exact simulation and certificate as every path
     (:func:`_assemble`): only an ``OPTIMAL`` certificate is accepted.
+    Only for models of at most :data:`~.lean.MAX_MODES` modes and moves whose
+    coarse grid has at most :data:`~.lean.MAX_POINTS` points.
     Returns ``(profile, error)`` as :func:`_fast_path` does.
     """
-    if not isinstance(system, ModalResponse):
+    if not isinstance(system, ModalResponse) or system.w.size > LEAN_MAX_MODES:
         return None, None
     lm = LeanMove(system, x0, problem.u_max, T_init)
     if lm.grid_points(T_init) > LEAN_MAX_POINTS:

@@ -186,6 +186,13 @@ def test_long_moves_are_left_to_the_fast_path():
     assert not took_lean(profile) and profile.certified
 
 
+def test_models_with_more_modes_are_left_to_the_fast_path():
+    problem = bench_move(lean.MAX_MODES + 1, 0.25)
+    profile = plan_time_optimal(problem)
+    assert problem.model.n_modes > lean.MAX_MODES
+    assert not took_lean(profile) and profile.extra["solver_path"] == time_optimal.SolverPath.FAST
+
+
 def test_more_switches_than_the_dense_limit_are_refused_at_once():
     lm = lean.LeanMove(ModalResponse(WB, True), np.array([-1.0, 0.0, 0.0, 0.0]), 1.0, 4.0)
     roots = np.linspace(0.01, 3.9, lean.DENSE_UP_TO + 2)
