@@ -22,9 +22,14 @@ modes) and a fixed set of rest-to-rest moves, prints one table:
   time, its IPOPT solve time (NLP construction excluded) and
   ``T_casadi - T*``.
 
+``--lean-ab`` adds a second table: the continuous and ZOH latencies with the
+time-optimal planner's lean path off (``time_optimal.LEAN_PATH = False``: the
+planner before it) and on, repeats alternating between the two so that both
+see the same load, and whether both gave the same certified optimum.
+
 Usage::
 
-    OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100]
+    OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100] [--lean-ab]
 """
 
 from __future__ import annotations
@@ -51,6 +56,7 @@ from flexmotion_ros.core import (
     rest_to_rest,
 )
 from flexmotion_ros.core.simulation import exact as _simulation
+from flexmotion_ros.core.time_optimal import solver as _time_optimal
 
 MODES = (1, 2, 3, 5, 8)
 #: Moves, as the rigid-body minimum time they would take (s); the 5 s one is the ZOH aim.
@@ -245,6 +251,53 @@ def timed(fn, repeats: int):
     return np.array(out), result
 
 
+def timed_ab(fn, repeats: int):
+    """Latencies of ``fn`` with the lean path off and on, alternating repeats (cold, as :func:`timed`)."""
+    out = {False: [], True: []}
+    result = {}
+    saved = _time_optimal.LEAN_PATH
+    try:
+        for _ in range(repeats):
+            for lean in (False, True):
+                _time_optimal.LEAN_PATH = lean
+                _simulation._step_cached.cache_clear()
+                t0 = time.perf_counter()
+                result[lean] = fn()
+                out[lean].append(time.perf_counter() - t0)
+    finally:
+        _time_optimal.LEAN_PATH = saved
+    return {k: np.array(v) for k, v in out.items()}, result
+
+
+def lean_ab_table(rows: list) -> None:
+    """The A/B table of ``--lean-ab`` (see the module docstring)."""
+    head = (
+        f"{'modes':>5} {'move m':>8} {'cont off ms':>11} {'cont on ms':>10} {'ratio':>6} "
+        f"{'ZOH off ms':>10} {'ZOH on ms':>9} {'|dT| s':>8} {'max|dsw| s':>10} {'both cert':>9} {'lean taken':>10}"
+    )
+    print()
+    print("# lean path off (the planner before it) vs on, same run, alternating repeats; medians")
+    print(head)
+    print("-" * len(head))
+    for n, gamma, tc, pc, tz in rows:
+        off, on = pc[False], pc[True]
+        same = off.switch_times.shape == on.switch_times.shape
+        dsw = float(np.max(np.abs(off.switch_times - on.switch_times), initial=0.0)) if same else math.inf
+        print(
+            f"{n:>5} {gamma:>8.4g} {1e3 * np.median(tc[False]):>11.2f} {1e3 * np.median(tc[True]):>10.2f} "
+            f"{np.median(tc[False]) / np.median(tc[True]):>6.2f} {1e3 * np.median(tz[False]):>10.1f} "
+            f"{1e3 * np.median(tz[True]):>9.1f} {abs(off.duration - on.duration):>8.1e} {dsw:>10.1e} "
+            f"{str(off.certified and on.certified):>9} {str(on.extra.get('fast_path_stage') == 'lean'):>10}"
+        )
+    print("-" * len(head))
+    for sel, label in ((lambda n: n <= 3, "1-3 modes"), (lambda n: n > 3, "5-8 modes")):
+        tc = [r[2] for r in rows if sel(r[0])]
+        if tc:
+            off = 1e3 * float(np.median(np.concatenate([t[False] for t in tc])))
+            on = 1e3 * float(np.median(np.concatenate([t[True] for t in tc])))
+            print(f"# {label}: continuous pooled median, lean off {off:.2f} ms, on {on:.2f} ms ({off / on:.2f}x)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -261,7 +314,9 @@ def main() -> None:
     )
     ap.add_argument("--modes", type=int, nargs="*", default=list(MODES))
     ap.add_argument("--no-casadi", action="store_true")
+    ap.add_argument("--lean-ab", action="store_true", help="also time the planner with its lean path off and on")
     args = ap.parse_args()
+    ab_rows = []
 
     print(
         f"# flexmotion planner latency (issue 2): python {platform.python_version()}, numpy {np.__version__}, "
@@ -307,6 +362,10 @@ def main() -> None:
                 aims["worst_delta"] = max(aims["worst_delta"], delta)
             if tr == 5.0:
                 aims["zoh_5s"].append((n, float(np.median(t_zoh)), prof.duration))
+            if args.lean_ab:
+                tc_ab, pc_ab = timed_ab(lambda pr=problem: plan_time_optimal(pr), args.repeats)
+                tz_ab, _ = timed_ab(lambda pr=problem: plan_time_optimal_zoh(pr, RATE, plan_time_optimal(pr)), reps_zoh)
+                ab_rows.append((n, gamma, tc_ab, pc_ab, tz_ab))
             if args.no_casadi:
                 cas = None
             else:
@@ -351,6 +410,8 @@ def main() -> None:
             f"{'MET' if med < 0.05 else 'NOT MET'} (issue 2: < 50 ms); "
             f"{'MET' if med < 0.01 else 'NOT MET'} (issue 15: < 10 ms)"
         )
+    if ab_rows:
+        lean_ab_table(ab_rows)
     if small and aims.get("ipopt_small"):
         med = float(np.median(small))
         ipopt = float(np.median(aims["ipopt_small"]))

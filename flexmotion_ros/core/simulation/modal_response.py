@@ -24,7 +24,7 @@ from ..model.modal_model import ModalModel
 _SERIES_Z = 0.1  # |c tau| below which phi-functions use their Taylor series
 
 
-def _phi1(z: np.ndarray) -> np.ndarray:
+def phi1(z: np.ndarray) -> np.ndarray:
     """``(e^z - 1) / z`` with the removable singularity at 0 filled in."""
     z = np.asarray(z, dtype=float)
     out = np.ones_like(z)
@@ -35,7 +35,7 @@ def _phi1(z: np.ndarray) -> np.ndarray:
     return out
 
 
-def _phi2(z: np.ndarray) -> np.ndarray:
+def phi2(z: np.ndarray) -> np.ndarray:
     """``(e^z - 1 - z) / z^2`` accurately near 0 (Taylor series below |z| = 0.1)."""
     z = np.asarray(z, dtype=float)
     out = np.empty_like(z)
@@ -105,7 +105,7 @@ class ModalResponse:
         out = np.empty((tau.size, self.n))
         ect = np.exp(self.c * tau)
         if self.include_position:
-            out[:, 0] = self.b0 * tau * _phi1(self.c * tau)
+            out[:, 0] = self.b0 * tau * phi1(self.c * tau)
         out[:, self.r - 1] = self.b0 * ect
         if self.w.size:
             E, C, S = self._mode_trig(tau)
@@ -138,8 +138,8 @@ class ModalResponse:
         out = np.empty((tau.size, self.n))
         ct = self.c * tau
         if self.include_position:
-            out[:, 0] = self.b0 * tau * tau * _phi2(ct)
-        out[:, self.r - 1] = self.b0 * tau * _phi1(ct)
+            out[:, 0] = self.b0 * tau * tau * phi2(ct)
+        out[:, self.r - 1] = self.b0 * tau * phi1(ct)
         if self.w.size:
             E, C, S = self._mode_trig(tau)
             t = tau[:, None]
@@ -157,7 +157,7 @@ class ModalResponse:
         ct = self.c * tau
         ect = math.exp(ct)
         if self.include_position:
-            out[0] = x[0] + x[1] * tau * float(_phi1(np.array([ct]))[0])
+            out[0] = x[0] + x[1] * tau * float(phi1(np.array([ct]))[0])
         out[self.r - 1] = x[self.r - 1] * ect
         if self.w.size:
             E, C, S = (a[0] for a in self._mode_trig(np.array([tau], dtype=float)))
@@ -175,7 +175,7 @@ class ModalResponse:
         out = np.empty((tau.size, self.n))
         ct = self.c * tau
         if self.include_position:
-            out[:, 0] = x[0] + x[1] * tau * _phi1(ct)
+            out[:, 0] = x[0] + x[1] * tau * phi1(ct)
         out[:, self.r - 1] = x[self.r - 1] * np.exp(ct)
         if self.w.size:
             E, C, S = self._mode_trig(tau)
@@ -236,7 +236,7 @@ class ModalResponse:
         nv = nu[self.r - 1]
         if c != 0.0:
             ect = np.exp(c * tau)
-            lin = tau * _phi1(c * tau)
+            lin = tau * phi1(c * tau)
         else:
             ect = None
             lin = tau
@@ -349,7 +349,7 @@ class ModalResponse:
         def rigid(tau: np.ndarray) -> np.ndarray:
             ect = np.exp(self.c * tau)
             if self.include_position:
-                return self.b0 * (nu[0] * tau * _phi1(self.c * tau) + nu[1] * ect)
+                return self.b0 * (nu[0] * tau * phi1(self.c * tau) + nu[1] * ect)
             return self.b0 * nu[0] * ect
 
         Ra, Rb = rigid(a), rigid(b)

@@ -62,6 +62,8 @@ def newton_from_guess(
     check: Check,
     tried: list[tuple[float, np.ndarray]] | None = None,
     max_switches: int | None = None,
+    refine: Callable | None = None,
+    structure: tuple[np.ndarray, float] | None = None,
 ) -> object | None:
     """Certified extremal from the switch structure of a co-state guess, or None.
 
@@ -85,13 +87,25 @@ def newton_from_guess(
         Give up on a structure with more switches than this (the planner's
         ``time_optimal.MAX_SWITCHES``: its full solver refuses such moves
         with a clear error).  None: no limit.
+    refine : callable, optional
+        ``refine(roots, sign0, nuh, T) -> (ok, roots, nuh, T, residual)``,
+        the switch-time Newton; default :func:`refine_switches` on ``sh``
+        (the lean path passes its own, :func:`~.lean.refine`).
+    structure : tuple of (ndarray, float), optional
+        The first structure (switch times-to-go in s, first sign) if already
+        guessed; default :func:`guess_structure` of ``nuh`` at ``T``.
 
     Returns
     -------
     object or None
         What ``check`` accepted, or None if no structure tried led to it.
     """
-    roots, sign0 = guess_structure(sh, nuh, T)
+    roots, sign0 = structure if structure is not None else guess_structure(sh, nuh, T)
+    if refine is None:
+
+        def refine(roots, sign0, nuh, T):
+            return refine_switches(sh, roots, sign0, nuh, T)
+
     if tried is None:
         tried = []
     for _ in range(MAX_TRIES):
@@ -100,7 +114,7 @@ def newton_from_guess(
         if any(_same_structure(roots, sign0, r, s, T) for s, r in tried):
             return None  # back to a structure that failed (here or in an earlier guess): stop
         tried.append((sign0, roots))
-        ok, tau, nuh_r, T_r, _ = refine_switches(sh, roots, sign0, nuh, T)
+        ok, tau, nuh_r, T_r, _ = refine(roots, sign0, nuh, T)
         if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
             return None
         if ok:

@@ -1,0 +1,295 @@
+"""The lean path of the time-optimal planner: the fast path's guess and Newton on fused closed forms.
+
+The fast path (:mod:`.structure_guess`) spends most of a small plan in numpy
+call overheads: its smoothed warm start brings the duration to within 1e-3
+of the optimum over two smoothing levels (five or six convex solves), and
+each Newton step asks :class:`~flexmotion_ros.core.simulation.modal_response.ModalResponse`
+five separate questions at the same times.  This module does the same
+mathematics with less:
+
+* :func:`smoothed_guess`: one smoothing level on a coarser grid (4 points
+  per half period of the fastest mode), the duration only to within 1 %
+  (the switch-time Newton corrects it), every response on the grid from one
+  :class:`~flexmotion_ros.core.simulation.modal_kernel.ModalKernel` call, the
+  hyperplane's null basis from one Householder reflection;
+* :func:`structure_from_samples`: the switch structure of the smoothed
+  co-state on that grid (sign changes, and narrow pairs where ``|S|`` nearly
+  touches zero), as :func:`~.structure_guess.guess_structure` does on its own grid;
+* :func:`refine`: the switch-time Newton of
+  :func:`~.switch_newton.refine_switches` (same unknowns, equations, scaling,
+  line search and convergence test), each iterate's responses from one kernel call.
+
+Nothing here is trusted: the planner hands every converged candidate to the
+same exact simulation and Pontryagin certificate as the full solver's, and
+runs the fast path and the full solver when this path finds nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..simulation.error_scale import state_scale
+from ..simulation.modal_kernel import ModalKernel
+from ..tolerances import POLISH_TOL
+from .reachable_set import bracketed_step
+from .switch_newton import DENSE_UP_TO
+
+#: A local minimum of ``|S|`` below this fraction of its maximum is a near-zero
+#: (the value of ``structure_guess.NEAR_ZERO``; not imported from there so that
+#: this module sits beside it, not above it, in the import graph).
+NEAR_ZERO = 1e-2
+#: ... and below this, one even if the switches are not too few (``structure_guess.VERY_NEAR_ZERO``).
+VERY_NEAR_ZERO = 1e-3
+#: Smoothing of ``|S|`` (relative to its mean) of the one warm-start level.
+SMOOTHING = 0.005
+#: Steps on the duration of the warm start; it stops within :data:`LOG_TOL` of ``m = 1``.
+OUTER_STEPS = 4
+#: ``|log m(T)|`` below which the warm start's duration is close enough for the switch-time Newton.
+LOG_TOL = 1e-2
+#: Grid points per half period of the fastest mode of the warm start (the planners' grid has 8).
+POINTS_PER_HALF_PERIOD = 4
+#: ... and at least this many.
+MIN_POINTS = 32
+#: The lean path is for models with at most this many modes: with 5-8 modes its
+#: coarse guess often misses the structure, and the failed attempt cost more than
+#: it saved (``bench/planner_latency.py --lean-ab``: the 8-mode 0.56 m move took
+#: 8.9 ms without it, 21.6 ms with it, the fast path answering either way).
+MAX_MODES = 3
+#: The lean path is for moves whose warm-start grid has at most this many points
+#: (longer moves: the fast path's own grid rules apply).
+MAX_POINTS = 4096
+#: Newton on the smoothed problem stops when the predicted decrease is below this (relative).
+INNER_RTOL = 1e-9
+#: Newton steps on the smoothed problem per duration.
+INNER_STEPS = 50
+
+
+class LeanMove:
+    """One move's data for the lean path: responses, scaled state, bound.
+
+    Parameters
+    ----------
+    response : ModalResponse
+        Closed-form responses of the model (the planner's state).
+    x0 : ndarray
+        Shifted initial state (the response's state).
+    u_max : float
+        Input bound (N).
+    T_scale : float
+        Duration (s) whose state scale (:func:`state_scale`) makes the
+        unknowns of order one (kept fixed: a lean plan does not rescale).
+    """
+
+    def __init__(self, response, x0: np.ndarray, u_max: float, T_scale: float) -> None:
+        self.response = response
+        self.kernel = ModalKernel(response, x0)
+        self.x0 = x0
+        self.u_max = u_max
+        self.n = response.n
+        self.s = state_scale(response, x0, u_max, T_scale)
+        self.evaluations = 0
+
+    def grid_points(self, T: float) -> int:
+        """Cells of the warm-start grid on ``[0, T]``."""
+        wmax = self.kernel.fastest
+        cells = MIN_POINTS
+        if wmax > 0.0:
+            cells = max(cells, math.ceil(T * wmax / math.pi * POINTS_PER_HALF_PERIOD))
+        return cells
+
+
+def _null_basis(w: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (columns) of the complement of ``w``: a Householder reflection's last columns."""
+    v = w / math.sqrt(float(w @ w))
+    u = v.copy()
+    u[0] += 1.0 if v[0] >= 0.0 else -1.0
+    return np.eye(v.size)[:, 1:] - np.outer(u, u[1:] * (2.0 / float(u @ u)))
+
+
+def _inner(lm: LeanMove, T: float, nuh: np.ndarray | None, eps_rel: float):
+    """Smoothed inner problem at ``T`` (as :func:`~.reachable_set.inner_smooth`, on the lean grid).
+
+    Returns ``(nuh, m, dm/dT, tau, S)``: the scaled co-state direction, the
+    smoothed ``m(T)`` and its derivative, the grid (time-to-go, s) and the
+    switching function of ``nuh`` on it (scaled).
+    """
+    um, s = lm.u_max, lm.s
+    cells = lm.grid_points(T)
+    tau = np.linspace(0.0, T, cells + 1)
+    kv = lm.kernel.evaluate(tau)
+    lm.evaluations += 1
+    Gm = kv.eB / s
+    w = -kv.eAx / s
+    wq = np.full(tau.size, T / cells)
+    wq[0] *= 0.5
+    wq[-1] *= 0.5
+    if nuh is None or float(nuh @ w) <= 0.0:
+        nuh = w / float(w @ w)
+    else:
+        nuh = nuh / float(nuh @ w)
+    Z = _null_basis(w)
+    S = Gm @ nuh
+    GZ = Gm @ Z
+    eps = eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
+    eps2 = eps * eps
+    f = um * float(wq @ (np.sqrt(S * S + eps2) - eps))
+    for _ in range(INNER_STEPS):
+        sq = np.sqrt(S * S + eps2)
+        g = um * (GZ.T @ (wq * S / sq))
+        Hr = um * ((GZ.T * (wq * eps2 / sq**3)) @ GZ)
+        try:
+            dy = -np.linalg.solve(Hr, g)
+        except np.linalg.LinAlgError:
+            dy = -g
+        dec = -float(g @ dy)
+        if dec <= INNER_RTOL * f:
+            break
+        dS = GZ @ dy
+        t = 1.0
+        for _ in range(40):
+            Sc = S + t * dS
+            fc = um * float(wq @ (np.sqrt(Sc * Sc + eps2) - eps))
+            if fc <= f - 0.25 * t * dec:
+                break
+            t *= 0.5
+        else:
+            break
+        nuh = nuh + t * (Z @ dy)
+        S = Sc
+        f = fc
+    sq = np.sqrt(S * S + eps2)
+    mu = um * float(wq @ (S * S / sq))
+    dm = um * (float(sq[-1]) - eps) + mu * float((nuh / s) @ kv.AeAx)
+    return nuh, f, dm, tau, S
+
+
+def smoothed_guess(lm: LeanMove, T_low: float, T_init: float):
+    """Co-state direction and duration from one smoothed level (see the module docstring).
+
+    Returns ``(nuh, T, tau, S)``: the scaled co-state direction and the
+    duration (s) of the last smoothed solve, its grid (time-to-go, s) and the
+    switching function of ``nuh`` on it.
+    """
+    T = max(T_init, T_low, 1e-300)
+    lo, hi = T_low, math.inf
+    nuh = None
+    for k in range(OUTER_STEPS):
+        nuh, m, dm, tau, S = _inner(lm, T, nuh, SMOOTHING)
+        if (m > 0.0 and abs(math.log(m)) < LOG_TOL) or k == OUTER_STEPS - 1:
+            break
+        T, lo, hi = bracketed_step(T, m, dm, lo, hi)
+    return nuh, float(tau[-1]), tau, S
+
+
+def structure_from_samples(tau: np.ndarray, S: np.ndarray, n: int) -> tuple[np.ndarray, float]:
+    """Switch structure (times-to-go, s, and the first sign) guessed from ``S`` sampled on ``tau``.
+
+    Sign changes (linear interpolation), plus a narrow pair at each local
+    minimum of ``|S|`` below :data:`VERY_NEAR_ZERO` of its
+    maximum, and at the deepest ones below :data:`NEAR_ZERO`
+    while the switches are fewer than ``n - 1`` (the rule of
+    :func:`~.structure_guess.guess_structure`).  Nothing is proved.
+    """
+    sg = np.sign(S)
+    nz = np.flatnonzero(sg)
+    if nz.size == 0:
+        return np.empty(0), 1.0
+    k = np.flatnonzero(sg[nz[:-1]] != sg[nz[1:]])
+    i, j = nz[k], nz[k + 1]
+    roots = tau[i] + (tau[j] - tau[i]) * S[i] / (S[i] - S[j])
+    sign0 = float(sg[nz[0]])
+    missing = (n - roots.size) // 2
+    a = np.abs(S)
+    top = float(np.max(a))
+    m = np.flatnonzero((a[1:-1] < a[:-2]) & (a[1:-1] <= a[2:]) & (sg[:-2] == sg[2:])) + 1
+    if m.size == 0:
+        return roots, sign0
+    m = m[np.argsort(a[m])]
+    deep = int(np.count_nonzero(a[m] < VERY_NEAR_ZERO * top))
+    m = m[a[m] < NEAR_ZERO * top][: max(missing, deep)]
+    if m.size == 0:
+        return roots, sign0
+    h = 0.25 * (tau[1] - tau[0])
+    c = tau[m]
+    pairs = np.stack([c - h, c + h], axis=1)
+    pairs = pairs[(pairs[:, 0] > 0.0) & (pairs[:, 1] < tau[-1])].ravel()
+    return np.sort(np.concatenate([roots, pairs])), sign0
+
+
+def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
+    """Switch-time Newton for a fixed structure: :func:`~.switch_newton.refine_switches` on the kernel.
+
+    Unknowns ``(tau_1..tau_L, nu, T)``; equations: final state zero (``n``),
+    switching function zero at each switch (``L``), one normalisation of
+    ``nu``.  Returns ``(ok, roots, nuh, T, residual)``; ``ok`` is False if
+    the structure broke (switches crossed or left ``(0, T)``) or Newton stalled,
+    or at once for more than :data:`~.switch_newton.DENSE_UP_TO` switches (the
+    whole system is solved densely here; the fast path eliminates).
+    """
+    kern, s, um, n = lm.kernel, lm.s, lm.u_max, lm.n
+    L = roots.size
+    if L > DENSE_UP_TO:
+        return False, roots, nuh, T, math.inf
+    signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+    jump = 2.0 * um * signs[:-1]
+    sl = um * float(signs[-1])
+    nuh = nuh / np.linalg.norm(nuh)
+    anchor = nuh.copy()
+    eps = np.finfo(float).eps
+    J = np.zeros((n + L + 1, L + n + 1))
+    J[-1, L : L + n] = anchor
+
+    def residual(tau, nuh, T):
+        kv = kern.evaluate(np.append(tau, T))
+        lm.evaluations += 1
+        G = kv.G
+        F = (kv.eAx + sl * G[L] + jump @ G[:L]) / s
+        g = kv.eB[:L] / s
+        r = np.empty(n + L + 1)
+        r[:n] = F
+        r[n : n + L] = (g @ nuh) * gscale
+        r[-1] = anchor @ nuh - 1.0
+        return r, g, kv
+
+    gscale = 1.0
+    tau = roots.copy()
+    r, g, kv = residual(tau, nuh, T)
+    if L:
+        gscale = 1.0 / max(float(np.max(np.linalg.norm(g, axis=1))), 1e-300)
+        r[n : n + L] *= gscale
+    rn = float(np.max(np.abs(r)))
+    for _ in range(max_iter):
+        if rn <= 16.0 * eps:
+            break
+        J[:n, :L] = g.T * jump
+        J[:n, -1] = (kv.AeAx + sl * kv.eB[L]) / s
+        if L:
+            J[n : n + L, :L] = np.diag((kv.AeB[:L] / s) @ nuh * gscale)
+            J[n : n + L, L : L + n] = g * gscale
+        try:
+            step = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:
+            step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        if max(float(np.max(np.abs(step[:L]), initial=0.0)), abs(float(step[-1]))) <= 4.0 * eps * T:
+            break
+        t = 1.0
+        for _ in range(12 if rn > POLISH_TOL else 1):
+            tau_c = tau + t * step[:L]
+            T_c = T + t * float(step[-1])
+            nu_c = nuh + t * step[L : L + n]
+            if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
+                r_c, g_c, kv_c = residual(tau_c, nu_c, T_c)
+                rn_c = float(np.max(np.abs(r_c)))
+                if rn_c < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        tau, nuh, T, r, g, kv, rn = tau_c, nu_c, T_c, r_c, g_c, kv_c, rn_c
+    if L:  # nu and -nu both vanish at the switches: take the one whose signs match
+        first = lm.response.switching(nuh / s, np.array([0.5 * tau[0]]))[0]
+        if np.sign(first) != sign0:
+            nuh = -nuh
+    return rn <= POLISH_TOL, tau, nuh, T, rn
