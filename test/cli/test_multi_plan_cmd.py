@@ -240,3 +240,15 @@ def test_json_is_one_object(capsys):
     assert main(["plan", "--config", str(GANTRY), "--goal", "1,1", "--json"]) == 0
     out = capsys.readouterr().out
     assert out.count("\n") == 1 and isinstance(json.loads(out), dict)
+
+
+def test_a_femtometre_goal_on_the_gantry_is_already_there(capsys):
+    """``plan --goal 1e-15,0 --rate 200``: the hold, said as for one input (a 0.53 ms, 4-sample move on 2b3dc69)."""
+    assert main(["plan", "--config", str(GANTRY), "--goal", "1e-15,0", "--rate", "200"]) == 0
+    text, _ = capsys.readouterr()
+    assert "certified         True (already there: every state within" in text, text
+    assert "samples           0 (0.000000 s, proved fewest)" in text
+    assert "peak command      trolley 0, bridge 0" in text
+    out = run_json(capsys, "--config", str(GANTRY), "--goal", "1e-15,0", "--rate", "200")
+    assert out["already_there"] is True and out["duration"] == 0.0 and out["samples"] == 0
+    assert out["commands"] == [] and out["certified"] is True

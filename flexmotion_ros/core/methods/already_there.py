@@ -25,6 +25,7 @@ rate: the state is not known better than that.
 from __future__ import annotations
 
 import time
+from enum import Enum
 
 import numpy as np
 
@@ -38,24 +39,87 @@ from ..tolerances import AT_REST_ULPS, FINAL_STATE_RTOL
 from .common import planning_rate
 
 
-def _reach_bound(problem, dt: float) -> np.ndarray:
-    """An upper bound on how far ``u_max`` moves each state from rest within ``dt`` (s), per state.
+class Nearness(str, Enum):
+    """How far a state is from the target's rest state, at one sample's resolution (:func:`nearness`)."""
 
-    From rest, every velocity-like state grows at most at its gain times
-    ``u_max`` (``|v(t)| <= |b0| u_max t`` with ``c <= 0``, ``|q'(t)| <= |b_i|
-    u_max t`` for a damped mode) and every position-like state is its
-    integral (``<= gain u_max t^2 / 2``).  A state deviating from the target by
-    more than ``FINAL_STATE_RTOL`` of this is certainly not "already there".
-    Plus the rounding size of the state itself, for the ulp test.
+    MOVE = "move"  # certainly farther than the tolerance of one sample's reach: a move to plan
+    ROUNDING = "rounding"  # differs by rounding only (AT_REST_ULPS): already there, at any rate
+    WITHIN_REACH = "within_reach"  # maybe within the tolerance: the exact final-state check decides
+
+
+def reach_bound(velocity_gains, dt: float, x0: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """An upper bound on how far the bounded inputs move each state from rest within ``dt`` (s), per state.
+
+    The states come in (position-like, velocity-like) pairs: a rigid body's
+    position and velocity, a mode's coordinate and its rate.  From rest, every
+    velocity-like state grows at most at its gain (``|v(t)| <= g t`` with
+    ``c <= 0``, ``|q'(t)| <= g t`` for a damped mode) and every position-like
+    state is its integral (``<= g t^2 / 2``).  A state deviating from the
+    target by more than ``FINAL_STATE_RTOL`` of this is certainly not
+    "already there".  Plus the rounding size of the state itself, for the ulp
+    test.  One input or several: the gain is what every input at its bound
+    adds up to.
+
+    Parameters
+    ----------
+    velocity_gains : array_like, shape ``(P,)``
+        Per pair, ``sum_i |b_i| u_max_i``: the largest rate of its
+        velocity-like state (state units / s^2: m/s^2 for a rigid body).
+    dt : float
+        One sample (s).
+    x0, target : ndarray, shape ``(2 P,)``
+        The state and the target's rest state (state units).
+
+    Returns
+    -------
+    ndarray, shape ``(2 P,)``
+        The bound (state units).
     """
-    model = problem.model
-    gains = np.concatenate([[model.b0, model.b0], np.repeat(np.asarray(model.b, dtype=float), 2)])
-    per_order = np.tile([0.5 * dt * dt, dt], 1 + model.n_modes)  # (position-like, velocity-like) pairs
-    bound = np.abs(gains) * problem.u_max * per_order
-    x0 = np.asarray(problem.x0, dtype=float)
-    target = model.rest_state(problem.target if problem.target is not None else 0.0)
-    bound = bound + AT_REST_ULPS * np.finfo(float).eps * np.maximum(np.abs(x0), np.abs(target)) / FINAL_STATE_RTOL
-    return bound if problem.target is not None else bound[1:]
+    gains = np.repeat(np.abs(np.asarray(velocity_gains, dtype=float)), 2)
+    per_order = np.tile([0.5 * dt * dt, dt], gains.size // 2)
+    size = np.maximum(np.abs(np.asarray(x0, dtype=float)), np.abs(np.asarray(target, dtype=float)))
+    return gains * per_order + AT_REST_ULPS * np.finfo(float).eps * size / FINAL_STATE_RTOL
+
+
+def nearness(velocity_gains, dt: float, x0: np.ndarray, target: np.ndarray, kept) -> Nearness:
+    """Whether the state ``x0`` is a move away from ``target`` at the resolution ``dt``, or maybe there.
+
+    The cheap, rigorous test in front of every plan (most plans stop here,
+    :attr:`Nearness.MOVE`): a state entry farther from the target than twice
+    ``FINAL_STATE_RTOL`` of :func:`reach_bound` is a move.  Entries differing
+    by at most :data:`~flexmotion_ros.core.tolerances.AT_REST_ULPS` units in the
+    last place of the larger of the two, all of them, are
+    :attr:`Nearness.ROUNDING`: the state is not known better than that.  Else
+    :attr:`Nearness.WITHIN_REACH`: the caller's exact final-state check of
+    the empty sequence decides.
+
+    Parameters
+    ----------
+    velocity_gains, dt, x0, target
+        As for :func:`reach_bound` (full state, absolute coordinates).
+    kept : index array
+        The state entries the move constrains (a stop drops the free positions).
+    """
+    x0, target = np.asarray(x0, dtype=float), np.asarray(target, dtype=float)
+    dev = (x0 - target)[kept]
+    size = np.maximum(np.abs(x0), np.abs(target))[kept]
+    if np.any(np.abs(dev) > reach_bound(velocity_gains, dt, x0, target)[kept] * FINAL_STATE_RTOL * 2.0):
+        return Nearness.MOVE
+    if np.all(np.abs(dev) <= AT_REST_ULPS * np.finfo(float).eps * size):
+        return Nearness.ROUNDING
+    return Nearness.WITHIN_REACH
+
+
+#: The hold's message when the goal and the state differ by rounding only.
+ROUNDING_MESSAGE = f"already there: the goal differs from the state by rounding only (<= {AT_REST_ULPS} ulps)"
+
+
+def within_reach_message(relative_error: float, rate_hz: float) -> str:
+    """The hold's message when the exact check of the empty sequence passed at ``rate_hz`` (Hz)."""
+    return (
+        f"already there: every state within {relative_error:.1e} (tolerance "
+        f"FINAL_STATE_RTOL) of the target's rest state, relative to one sample's reach at {rate_hz:g} Hz"
+    )
 
 
 def plan_already_there(config: PlannerConfig, move: PreparedMove, rate_hz: float | None) -> PlanResult | None:
@@ -83,16 +147,18 @@ def plan_already_there(config: PlannerConfig, move: PreparedMove, rate_hz: float
     rate, _ = planning_rate(config, rate_hz)
     dt = 1.0 / rate
     problem = move.problem
+    model = problem.model
     x0 = np.asarray(problem.x0, dtype=float)
-    target = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
-    dev, size = x0 - target, np.maximum(np.abs(x0), np.abs(target))
-    if problem.target is None:
-        dev, size = dev[1:], size[1:]
-    if np.any(np.abs(dev) > _reach_bound(problem, dt) * FINAL_STATE_RTOL * 2.0):
+    target = model.rest_state(problem.target if problem.target is not None else 0.0)
+    gains = np.abs(model.B()[1::2]) * problem.u_max  # the velocity-like rows of B
+    kept = np.arange(x0.size) if problem.target is not None else np.arange(1, x0.size)
+    near = nearness(gains, dt, x0, target, kept)
+    if near is Nearness.MOVE:
         return None  # a real move (the cheap, rigorous test: most plans stop here)
     extra = {"already_there": True}
-    if np.all(np.abs(dev) <= AT_REST_ULPS * np.finfo(float).eps * size):
+    if near is Nearness.ROUNDING:
         # the goal and the state differ by rounding only: the state is not known better than that
+        dev = (x0 - target)[kept]
         scale = move.error_scale(dt)
         hold = SampledProfile(
             problem=problem,
@@ -107,16 +173,13 @@ def plan_already_there(config: PlannerConfig, move: PreparedMove, rate_hz: float
             method=config.method,
             extra=extra,
         )
-        message = f"already there: the goal differs from the state by rounding only (<= {AT_REST_ULPS} ulps)"
+        message = ROUNDING_MESSAGE
     else:
         try:
             hold = verified_samples(move, np.empty(0), dt, config.method, True, 0, None, extra, t0)
         except SolverError:
             return None
-        message = (
-            f"already there: every state within {hold.final_state_error_relative:.1e} (tolerance "
-            f"FINAL_STATE_RTOL) of the target's rest state, relative to one sample's reach at {rate:g} Hz"
-        )
+        message = within_reach_message(hold.final_state_error_relative, rate)
     certificate = Certificate(
         passed=True,
         costate_initial=np.zeros(move.response.n),

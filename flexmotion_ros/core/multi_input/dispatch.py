@@ -212,6 +212,7 @@ def plan(config: AnyConfig, problem, rate_hz: float | None = None) -> PlanResult
         sync=config.sync,
         options=config.options,
         fuel_weights=config.fuel_weights,
+        resolution_hz=config.rate_hz,  # "already there" without a rate: at the node's rate, as for one input
     )
     s = result.sampled
     if s is not None and s.commands.size:

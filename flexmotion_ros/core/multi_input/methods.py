@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError, InputError
 from ..shaping.shapers import SHAPERS, check_negative_amplitude, check_tolerance, design
+from .already_there import multi_already_there
 from .fixed_time import plan_multi_fixed_time, plan_multi_fixed_time_zoh
 from .fuel import plan_multi_min_fuel_zoh
 from .problem import MultiMoveProblem
@@ -106,6 +107,7 @@ def plan_multi_move(
     sync: str | SyncMode = SyncMode.TIME,
     options: Mapping | None = None,
     fuel_weights=None,
+    resolution_hz: float | None = None,
 ) -> MultiPlanResult:
     """Plan ``problem`` with ``method``; with ``rate_hz``, also the exact sampled sequence.
 
@@ -123,6 +125,10 @@ def plan_multi_move(
         ``shaper.tolerance``, ``shaper.negative_amplitude`` (shapers).
     fuel_weights : sequence of float, optional
         ``c_i`` of eq. 2.38, one per input (``min_fuel``; default all 1).
+    resolution_hz : float, optional
+        The resolution (Hz) of "already there" when ``rate_hz`` is None (the
+        configured rate): a move shorter than one sample's reach is the hold,
+        whatever the method (:mod:`.already_there`).
 
     Raises
     ------
@@ -134,6 +140,11 @@ def plan_multi_move(
     check_multi_method(method)
     mode = check_sync(sync)
     options = dict(options or {})
+    # a move shorter than the resolution is answered "already there", whatever the method
+    hold = multi_already_there(problem, method, rate_hz, resolution_hz, mode)
+    if hold is not None:
+        info = {"already_there": True, "plan_time_s": hold[0].solve_time_s}
+        return MultiPlanResult(method=method, problem=problem, continuous=hold[0], sampled=hold[1], info=info)
     info: dict = {}
     if method == "time_optimal":
         cont = plan_multi_time_optimal(problem, mode)

@@ -50,8 +50,8 @@ class PartLP:
 
     def rows(self, K: int) -> np.ndarray:
         """``(m K, n)``: row ``i K + j`` is ``u_max_i g_{i,j} / s``."""
-        if self._rows is None or self._rows.shape[0] < K:
-            Kc = max(K, 2 * (0 if self._rows is None else self._rows.shape[0]))
+        if self._rows is None or self._rows.shape[1] < K:  # (m, Kc, n): grow the samples, axis 1
+            Kc = max(K, 2 * (0 if self._rows is None else self._rows.shape[1]))
             tau = self.dt * np.arange(Kc)
             self._rows = np.stack(
                 [self.U[i] * self.resp.expm_x_many(tau, self.gam[:, i]) / self.s for i in range(self.resp.m)]
