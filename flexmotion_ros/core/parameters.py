@@ -222,6 +222,29 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         "a trajectory goal arriving before T*",
         choices=("refuse", "optimum"),
     ),
+    # issue 14: outputs, command interfaces, closed-loop replanning (command_interface and
+    # trajectory.topic are read by the plant too: one file serves both)
+    _p("output", S, "'stream' or 'trajectory'", "what the planner publishes", choices=("stream", "trajectory")),
+    _p(
+        "command_interface",
+        S,
+        "'effort', 'velocity' or 'position'",
+        "command interface of the actuated joint",
+        choices=("effort", "velocity", "position"),
+    ),
+    _p("trajectory.topic", S, "a topic name", "trajectory_msgs/JointTrajectory topic of output: trajectory"),
+    _p(
+        "trajectory.interpolation",
+        S,
+        "'none' or 'splines'",
+        "the receiver's interpolation_method",
+        choices=("none", "splines"),
+    ),
+    _p("trajectory.receiver_update_rate", D, "Hz, 0 or >= 1", "the receiver's update_rate (look-ahead); 0: none"),
+    _p("trajectory.start_delay_s", D, "s, in [0, 10]", "a move from idle starts this far ahead (transport margin)"),
+    _p("feedback.replan_period_s", D, "s, >= 0; 0: off", "period of closed-loop replanning during a move"),
+    _p("feedback.measurement_std", D, "> 0, the measurements' units", "measurement noise assumed by the filter"),
+    _p("feedback.input_noise_std", D, ">= 0, the input's unit", "input disturbance assumed by the filter"),
 )
 
 #: Parameters of ``flexmotion_plant`` (add new ones here).
@@ -235,6 +258,17 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("plant.apply_at", S, "'arrival' or 'send'", "when a command acts", choices=("arrival", "send")),
     _p("plant.initial_position", D, "m or rad", "initial rigid-body position"),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
+    _p("plant.input", S, "'commands' or 'trajectory'", "what drives the plant", choices=("commands", "trajectory")),
+    _p("plant.servo_bandwidth", D, "rad/s, >= 0; 0: ideal", "first-order servo of a velocity / position joint"),
+    _p(
+        "plant.disturbance.type",
+        S,
+        "'none', 'impulse' or 'step'",
+        "a force disturbance on the rigid body's input",
+        choices=("none", "impulse", "step"),
+    ),
+    _p("plant.disturbance.time_s", D, "s, >= 0", "when it acts, from the first command or trajectory point"),
+    _p("plant.disturbance.value", D, "N s (impulse) or N (step)", "its size"),
 )
 
 #: Parameters rclpy declares on every node.

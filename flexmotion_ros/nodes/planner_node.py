@@ -105,7 +105,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64, Float64MultiArray
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
@@ -131,6 +131,7 @@ from .parameters import (
 )
 from .planner_goals import GoalHandling
 from .planner_lifecycle import LifecycleTransitions
+from .planner_output import OutputGlue, check_output
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .planner_stops import StopHandling
 from .planner_stream import StreamGlue
@@ -154,7 +155,7 @@ LATCHED_QOS = QoSProfile(
 )
 
 
-class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
+class PlannerNode(OutputGlue, GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
     Parameters
@@ -256,7 +257,8 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         self.installed: deque[Segment] = deque(maxlen=INSTALLED_KEPT)
 
         # a lifecycle publisher: nothing goes out unless active (the hold is sent before deactivating it)
-        self.commands_publisher = self.create_lifecycle_publisher(Float64MultiArray, "commands", COMMAND_QOS)
+        # 'commands' (output: stream) or the trajectory topic (output: trajectory), see planner_output
+        self.commands_publisher = self._output_publisher(v, COMMAND_QOS)
         self._trajectory_pub = self.create_publisher(JointTrajectory, "~/planned_trajectory", LATCHED_QOS)
         # /diagnostics from its own thread (started last), not an executor timer
         self._status = StatusReporter(
@@ -346,7 +348,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         )
 
     def _validate(self, candidate: dict[str, Any]) -> None:
-        planner_config(candidate)
+        check_output(candidate, planner_config(candidate).model)  # e.g. model.c != 0 for a velocity joint
 
     def _apply_parameters(self, params) -> None:
         if self._lifecycle not in ("inactive", "active"):
@@ -384,6 +386,7 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
             "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
+            **self._output_status(),
         }
 
     def _check_streaming_ready(self) -> None:
@@ -396,7 +399,8 @@ class PlannerNode(GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, 
         n = self.commands_publisher.get_subscription_count()
         before, self._command_subscribers = self._command_subscribers, n
         if n > 0 and before == 0:
-            self.get_logger().info(f"streaming ready: 'commands' matched by {n} subscriber(s) (writer side)")
+            topic = self.commands_publisher.topic_name
+            self.get_logger().info(f"streaming ready: '{topic}' matched by {n} subscriber(s) (writer side)")
             self.publish_diagnostics()
         elif n == 0 and before > 0:
             self.get_logger().warning("'commands' lost its last subscriber: goals are refused until one matches")

@@ -11,9 +11,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from ..execution import CommandStream, Segment
+from ..execution import Segment
 from ..execution.splice import StopPreparer
-from . import messages
 from .planner_goals import MoveRecord
 
 #: Under ``use_sim_time``, the stream's sleep polls the ROS clock this often (wall s).
@@ -25,18 +24,12 @@ class StreamGlue:
 
     def _make_stream(self, v: dict[str, Any], rate: float) -> None:
         """The command stream on ``commands`` (stopped until activate) and the ready-stop preparer."""
-        msg = messages.command(0.0)
-
-        def publish(value: float) -> None:
-            msg.data[0] = value
-            self.commands_publisher.publish(msg)
-
         # use_sim_time: the node's ROS clock (it follows /clock); else the monotonic wall clock, as always
         self._ros_time_stream = bool(self.get_parameter("use_sim_time").value)
         clock_pair = self._ros_clock_pair() if self._ros_time_stream else {}
-        self.stream = CommandStream(
+        # a CommandStream publishing the configured output (planner_output: stream or trajectory, the interface)
+        self.stream = self._output_stream(
             rate,
-            publish,
             bool(v["publish_hold_when_idle"]),
             on_start=self._on_segment_start,
             on_finish=self._on_move_finished,

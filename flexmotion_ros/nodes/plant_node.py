@@ -64,6 +64,7 @@ from .parameters import (
     plant_specs,
     validating_callback,
 )
+from .plant_actuator import ActuatorGlue
 from .runner import run
 
 NODE_NAME = "flexmotion_plant"
@@ -82,7 +83,7 @@ _CACHE_LIMIT = 2048
 SETTLE_US = 10_000_000
 
 
-class PlantNode(Node):
+class PlantNode(ActuatorGlue, Node):
     """The simulated plant; ``Node`` keyword arguments pass through.
 
     Raises
@@ -126,14 +127,20 @@ class PlantNode(Node):
         self._last_command_at: int | None = None
         self._timeout_reported_for = -math.inf  # the cut-off (us) last counted as a timeout
         self.joint_names = ["rigid_body"] + list(cfg.model.names)
+        self._actuator_setup(self._values())  # command interface, servo, disturbance, input (plant_actuator)
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        # commands one at a time, in order; the timers in their own groups
-        self.create_subscription(
-            Float64MultiArray, "commands", self._on_command, PLANT_QOS, callback_group=MutuallyExclusiveCallbackGroup()
-        )
-        if not cfg.lockstep:
+        # commands one at a time, in order; the timers in their own groups (or trajectories: plant_actuator)
+        if not self._actuator_interfaces(self._values()):
+            self.create_subscription(
+                Float64MultiArray,
+                "commands",
+                self._on_command,
+                PLANT_QOS,
+                callback_group=MutuallyExclusiveCallbackGroup(),
+            )
+        if not cfg.lockstep and not self._plays_trajectories:
             rate = float(self._values()["publish_rate_hz"]) or cfg.rate_hz
             self.create_timer(1.0 / rate, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
         idle_period = float(self._values()["plant.idle_state_period_s"])
@@ -160,7 +167,9 @@ class PlantNode(Node):
         self._model_error = "; ".join(errors) or "none"
         self.get_logger().info(
             f"ready: {'lockstep' if cfg.lockstep else 'real time'} at {cfg.rate_hz:g} Hz, {cfg.model.n_modes} mode(s), "
-            f"at {cfg.initial_position:g}" + (f"; model error: {self._model_error}" if errors else "")
+            f"at {cfg.initial_position:g}"
+            + (f"; model error: {self._model_error}" if errors else "")
+            + (f"; {self._actuator_summary}" if self._actuator is not None else "")
         )
 
     # ------------------------------------------------------------ parameters
@@ -261,6 +270,9 @@ class PlantNode(Node):
             u = 0.0
         with self._lock:
             self.received += 1
+            if self._actuator is not None:  # a servo, a disturbance (plant_actuator)
+                self._actuated_command(u)
+                return
             if self.cfg.lockstep:
                 self.x = self.x_event = self._step(self.x_event, self.cfg.dt, u)
                 self.u = u
@@ -301,6 +313,8 @@ class PlantNode(Node):
 
     def state(self) -> np.ndarray:
         """Simulated state ``[p, v, q1, q1', ...]``: now (real time, commands handed over so far) or after the last command (lockstep)."""
+        if self._actuator is not None:
+            return self._actuated_state()
         with self._lock:
             if self.cfg.lockstep:
                 return self.x_event.copy()
@@ -330,6 +344,7 @@ class PlantNode(Node):
                 "joint_states_subscribers": self._pub.get_subscription_count(),
                 "joint_states_published": self.published,
                 "diagnostics_subscribers": self._diag_pub.get_subscription_count(),
+                **self._actuator_status(),
             }
         ok = DiagnosticStatus.OK
         level = ok[0] if isinstance(ok, (bytes, bytearray)) else int(ok)
