@@ -245,6 +245,7 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("feedback.replan_period_s", D, "s, >= 0; 0: off", "period of closed-loop replanning during a move"),
     _p("feedback.measurement_std", D, "> 0, the measurements' units", "measurement noise assumed by the filter"),
     _p("feedback.input_noise_std", D, ">= 0, the input's unit", "input disturbance assumed by the filter"),
+    _p("feedback.min_deviation", D, "in (0, 1), a fraction of the move", "replan only above this deviation"),
 )
 
 #: Parameters of ``flexmotion_plant`` (add new ones here).
@@ -267,7 +268,7 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         "a force disturbance on the rigid body's input",
         choices=("none", "impulse", "step"),
     ),
-    _p("plant.disturbance.time_s", D, "s, >= 0", "when it acts, from the first command or trajectory point"),
+    _p("plant.disturbance.time_s", D, "s, >= 0", "when it acts, from the first non-zero force (the first move)"),
     _p("plant.disturbance.value", D, "N s (impulse) or N (step)", "its size"),
 )
 

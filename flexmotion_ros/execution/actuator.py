@@ -60,7 +60,7 @@ class Disturbance:
     ----------
     kind : DisturbanceKind
     time_s : float
-        When (s, from the first command or the first trajectory point).
+        When (s, from the first non-zero command: the first move's start).
     value : float
         Impulse (N s) or step (N).
     """
@@ -197,11 +197,15 @@ class Actuator:
         """A new setpoint from now, due at ``due_ns`` (velocity / position: the servo arrives then, then holds).
 
         Effort: the force, held until the next one (``due_ns`` ignored).
-        The first call starts the disturbance's clock.
+        The first non-zero force (the first move, not an idle hold) starts the disturbance's clock.
         """
         st = self._st
-        origin = st.origin_ns if st.origin_ns is not None else st.t_ns
-        if self.interface is CommandInterface.EFFORT or due_ns is None or due_ns <= st.t_ns:
+        origin = st.origin_ns
+        if origin is None and (self.interface is not CommandInterface.EFFORT or value != 0.0):
+            origin = st.t_ns  # the disturbance's clock starts with the first move (not with idle holds)
+        if self.interface is CommandInterface.EFFORT:
+            h, due_ns = None, None  # a force is held until the next one: no arrival
+        elif due_ns is None or due_ns <= st.t_ns:
             h = None
         else:
             h = (due_ns - st.t_ns) / NS

@@ -235,6 +235,8 @@ class OutputStream(CommandStream):
         ``ros_ns(t)``: the node's clock (integer ns) at the stream clock's time ``t`` (s).
     on_sample : callable, optional
         ``on_sample(k, u)`` after each sample sent (the model input ``u``), in the stream thread.
+    on_start_now : callable, optional
+        ``on_start_now(segment)`` when a move from idle is installed (its ``start`` set), before its first sample.
     **kwargs
         As for :class:`CommandStream` (``on_fault`` is called after the hold trajectory went out).
     """
@@ -251,6 +253,7 @@ class OutputStream(CommandStream):
         publish_trajectory: Callable[[JointTrajectory], None] | None = None,
         ros_ns: Callable[[float], int] | None = None,
         on_sample: Callable[[int, float], None] | None = None,
+        on_start_now: Callable[[Segment], None] | None = None,
         on_fault: Callable[[StreamHalt], None] | None = None,
         **kwargs: Any,
     ) -> None:
@@ -262,11 +265,15 @@ class OutputStream(CommandStream):
         self._publish_trajectory = publish_trajectory
         self._ros_ns = ros_ns or (lambda t: round(t * NS))
         self._on_sample = on_sample
+        self._on_start_now = on_start_now
         self._user_on_fault = on_fault
         self._delay = settings.delay_samples(rate_hz)
         self._clock_lock = threading.Lock()
         self.sample_clock: SampleClock | None = None
         self._published_timeline: list[Segment] = []  # what the receiver was last told (trajectory mode)
+        #: Hold samples appended to every segment installed (closed-loop replanning: the window in which the
+        #: loop can still correct after a plan's last command); 0: none.
+        self.settle_samples = 0
         self.trajectories_published = 0
         self.holds_published = 0
         #: The last trajectory published (trajectory mode), None before the first.
@@ -303,7 +310,12 @@ class OutputStream(CommandStream):
         """A move from idle: the reference restarts at its first state; trajectory mode: after the start delay."""
         if not self.idle:
             raise RuntimeError("stream is not idle; splice instead")
+        self._settle_tail(segment)
         self.encoder.reset(segment.states[0])  # before the stream can send the move's first sample
+        if self._on_start_now is not None:
+            k_next, _ = self.snapshot()
+            segment.start = k_next + self._delay  # where it will start (set again by the stream)
+            self._on_start_now(segment)
         if self._delay == 0:
             k0 = super().start_now(segment)
             self._installed(segment, k0)
@@ -321,10 +333,20 @@ class OutputStream(CommandStream):
             k_next, _ = self.snapshot()
             if at < k_next + self._delay:
                 return False
+        self._settle_tail(segment)
         if not super().splice(segment, at):
             return False
         self._installed(segment, None)
         return True
+
+    def _settle_tail(self, segment: Segment) -> None:
+        """Append :attr:`settle_samples` hold samples (the plan ends at rest: its last state stays)."""
+        n = self.settle_samples
+        if n <= 0 or getattr(segment, "settle_samples", 0):
+            return
+        segment.commands = np.concatenate([segment.commands, np.full(n, HOLD)])
+        segment.states = np.concatenate([segment.states, np.repeat(segment.states[-1:], n, axis=0)])
+        segment.settle_samples = n
 
     def _installed(self, segment: Segment, first: int | None) -> None:
         """Trajectory mode: publish the timeline from the move's first sample or from the sample being played."""

@@ -350,6 +350,15 @@ def _actuator_specs() -> list[Spec]:
             fp_range=(0.0, 1e12),
         ),
         Spec(
+            "feedback.min_deviation",
+            1e-6,
+            "replan only when the estimated state deviates from the plan by more than this fraction of the move "
+            "(position, velocity over the rest of the plan, every mode's amplitude), in (0, 1): the residual the "
+            "closed loop settles for. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
             "feedback.input_noise_std",
             0.0,
             "standard deviation of the unknown input disturbance the filter assumes per sample (the input's unit, "
@@ -385,6 +394,7 @@ PLANNER_NODE_ONLY = frozenset(
         "feedback.replan_period_s",
         "feedback.measurement_std",
         "feedback.input_noise_std",
+        "feedback.min_deviation",
     }
 )
 
@@ -486,14 +496,14 @@ def plant_specs() -> list[Spec]:
             "plant.disturbance.type",
             "none",
             "a force on the rigid body's input channel (effort joints): 'none', 'impulse' (plant.disturbance.value "
-            "N s at plant.disturbance.time_s) or 'step' (value N from time_s on); time from the first command or the "
-            "first trajectory point. Fixed at start-up.",
+            "N s at plant.disturbance.time_s) or 'step' (value N from time_s on); time from the first non-zero "
+            "force (the first move). Fixed at start-up.",
             read_only=True,
         ),
         Spec(
             "plant.disturbance.time_s",
             0.0,
-            "when the disturbance acts (s, >= 0), from the first command or trajectory point. Fixed at start-up.",
+            "when the disturbance acts (s, >= 0), from the first non-zero force (the first move). Fixed at start-up.",
             read_only=True,
             fp_range=(0.0, 1e9),
         ),

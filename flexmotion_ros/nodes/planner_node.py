@@ -129,6 +129,7 @@ from .parameters import (
     planner_specs,
     validating_callback,
 )
+from .planner_feedback import FeedbackGlue
 from .planner_goals import GoalHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_output import OutputGlue, check_output
@@ -155,7 +156,9 @@ LATCHED_QOS = QoSProfile(
 )
 
 
-class PlannerNode(OutputGlue, GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
+class PlannerNode(
+    OutputGlue, FeedbackGlue, GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode
+):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
     Parameters
@@ -291,6 +294,7 @@ class PlannerNode(OutputGlue, GoalHandling, StopHandling, StreamGlue, LifecycleT
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=requests)
 
         self._make_stream(v, rate)
+        self._feedback_setup(v)  # closed-loop replanning (planner_feedback), off unless feedback.replan_period_s
         self._worker.start()
         # A full garbage collection over everything imported (rclpy, scipy, ...) takes
         # ~100 ms on a loaded machine and holds the GIL: measured as a 100 ms hole in
@@ -319,6 +323,7 @@ class PlannerNode(OutputGlue, GoalHandling, StopHandling, StreamGlue, LifecycleT
         worker = getattr(self, "_worker", None)
         if worker is not None:
             worker.stop()
+        self._feedback_close()
         status = getattr(self, "_status", None)
         if status is not None:
             status.stop()
@@ -387,6 +392,7 @@ class PlannerNode(OutputGlue, GoalHandling, StopHandling, StreamGlue, LifecycleT
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
             **self._output_status(),
+            **self._feedback_status(),
         }
 
     def _check_streaming_ready(self) -> None:

@@ -4,7 +4,7 @@
 -- ``effort`` (N), or the ``velocity`` / ``position`` reference a servo
 tracks (``plant.servo_bandwidth`` rad/s, first order; 0: ideal).
 ``plant.disturbance.*``: a force impulse or step on the rigid body's input,
-at a time from the first command.  ``plant.input: trajectory``: the plant
+at a time from the first non-zero force (the first move).  ``plant.input: trajectory``: the plant
 plays ``trajectory_msgs/JointTrajectory`` from ``trajectory.topic`` with the
 joint trajectory controller's rule (interpolation ``none``, no look-ahead) by
 its own clock, integrating each constant piece exactly -- in real time, a
