@@ -8,6 +8,7 @@ import sys
 from ..core.config import PlannerConfig
 from ..core.errors import ModelError
 from ..core.model.builders import INPUT_KINDS, BuiltModel, chain, crane, two_mass
+from ..core.model.measurement import builder_map
 from ..core.parameter_file import dump_parameters
 
 
@@ -69,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     config = PlannerConfig(model=built.model, u_max=args.u_max, rate_hz=args.rate)
     params = config.to_parameters()
     del params["limits.position_min"], params["limits.position_max"]
+    # what the machine's sensors read (the plant's 'measurements' topic, identification)
+    params.update(builder_map(built).to_parameters())
     desc = ", ".join(f"{k}={v}" for k, v in built.parameters.items())
     meaning = (
         "mode: payload offset from the cart (m)"

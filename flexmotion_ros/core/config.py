@@ -33,6 +33,7 @@ import numpy as np
 
 from .errors import ConfigError, GoalError
 from .model.boundary import MoveProblem
+from .model.measurement import measurement_map
 from .model.modal_model import ModalModel, check_positive
 from .parameter_file import (
     dump_parameters,
@@ -62,6 +63,7 @@ METHOD_NAMES: tuple[str, ...] = (
     "fixed_time",
     "min_fuel",
     "limited",
+    "auto_robust",
 )
 
 DEFAULTS: dict[str, Any] = {
@@ -312,6 +314,7 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         and not (isinstance(v, (list, tuple)) and not v)  # an empty list is unset, as in rcl
     }
     check_sampling(model, check_rate_hz(p["rate_hz"]))
+    measurement_map(p, model.n_modes)  # measurement.* fit the model: the nodes give the same verdict
     return PlannerConfig(
         model=model,
         u_max=p["u_max"],

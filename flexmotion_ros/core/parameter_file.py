@@ -192,7 +192,10 @@ def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
         k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in _INT_PARAMS else v)
         for k, v in params.items()
     }
-    clean = {k: ([float(x) for x in v] if isinstance(v, (list, tuple)) else v) for k, v in clean.items()}
+    clean = {
+        k: ([x if isinstance(x, (str, bool)) else float(x) for x in v] if isinstance(v, (list, tuple)) else v)
+        for k, v in clean.items()
+    }
     body = yaml.dump(
         {"/**": {"ros__parameters": unflatten(clean)}}, Dumper=_Dumper, sort_keys=False, default_flow_style=None
     )

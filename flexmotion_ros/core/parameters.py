@@ -89,6 +89,9 @@ class ParameterInfo:
     choices : tuple of str
         The only values a string parameter may take (empty: any); checked
         here, so that ``flexmotion plan`` and the nodes refuse the same file.
+    also : ParameterType or None
+        A second type the value may have (a dynamically typed parameter, e.g.
+        one noise level or one per channel).
     """
 
     name: str
@@ -98,6 +101,7 @@ class ParameterInfo:
     methods: tuple[str, ...] = ()
     required_by: tuple[str, ...] = ()
     choices: tuple[str, ...] = ()
+    also: ParameterType | None = None
 
 
 def _p(name: str, type_: ParameterType, allowed: str, description: str, **kw: Any) -> ParameterInfo:
@@ -142,6 +146,7 @@ CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
 
 _SHAPERS = tuple(SHAPERS)
 _ROBUST = ("robust_time_optimal",)
+_AUTO = ("auto_robust",)
 
 #: Options of the planning methods (``PlannerConfig.options``).
 METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
@@ -159,7 +164,7 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
         D,
         "fraction, in (0, 1), default 0.05",
         "tolerance of the reported insensitivity",
-        methods=_SHAPERS + _ROBUST,
+        methods=_SHAPERS + _ROBUST + _AUTO,
     ),
     _p("robust_order", I, "integer, 0..4, default 1", "derivative order of robust_time_optimal", methods=_ROBUST),
     _p(
@@ -197,6 +202,21 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
     ),
     _p("limits.slew_rate", D, "N/s, > 0", "command slew-rate limit", methods=("limited",)),
     _p("limits.report_each", B, "true or false", "also plan with each limit alone", methods=("limited",)),
+    _p("auto_robust.omega_min", DA, "rad/s, one per mode, > 0", "lowest frequency of each mode", methods=_AUTO),
+    _p(
+        "auto_robust.omega_max",
+        DA,
+        "rad/s, one per mode, >= omega_min",
+        "highest frequency of each mode",
+        methods=_AUTO,
+    ),
+    _p(
+        "auto_robust.relative_error",
+        D,
+        "fraction, in [0, 1), default 0.02",
+        "frequency interval omega (1 +- this) when omega_min/max are unset",
+        methods=_AUTO,
+    ),
 )
 
 #: Parameters of ``flexmotion_planner`` that are not part of the configuration (add new ones here).
@@ -246,6 +266,33 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("feedback.measurement_std", D, "> 0, the measurements' units", "measurement noise assumed by the filter"),
     _p("feedback.input_noise_std", D, ">= 0, the input's unit", "input disturbance assumed by the filter"),
     _p("feedback.min_deviation", D, "in (0, 1), a fraction of the move", "replan only above this deviation"),
+    # identification on the machine (nodes/planner_identify.py, execution/learning.py)
+    _p("identification.band", DA, "[lo, hi] rad/s, 0 < lo < hi; empty: around the model's modes", "excitation band"),
+    _p("identification.modes", I, "integer in [-1, 8]; -1: the model's", "modes to identify"),
+    _p("identification.duration_s", D, "s, in [0, 120]; 0: 4 periods of the band's low end", "excitation length"),
+    _p("identification.adopt", B, "true or false", "~/identify adopts what the data contradict"),
+    _p("identification.learn_from_moves", B, "true or false", "refine the model from every move's record"),
+    _p("identification.ringdown_s", D, "s, in [0, 60]", "idle time recorded after a move before fitting"),
+    _p("identification.max_omega_interval", D, "fraction, in (0, 1]", "confident: 95 % half-width of omega below this"),
+    _p("identification.max_zeta_interval", D, "in (0, 1]", "confident: 95 % half-width of zeta below this"),
+    _p("identification.max_record_s", D, "s, in (0, 120]", "longest learning record"),
+)
+
+#: The measured channels (``core/model/measurement.py``): the same names in the planner's and the plant's file.
+MEASUREMENT_PARAMETERS: tuple[ParameterInfo, ...] = (
+    _p("measurement.names", SA, "unique physical coordinate names", "channels of the plant's measurements topic"),
+    _p(
+        "measurement.map",
+        DA,
+        "row-major, len(measurement.names) x (rigid bodies + modes)",
+        "y = map @ [p, q_1, ..., q_N] (positions; velocities and accelerations likewise)",
+    ),
+    _p(
+        "measurement.kinds",
+        SA,
+        "one per name: position, velocity or acceleration; default position",
+        "what each channel reads",
+    ),
 )
 
 #: Parameters of ``flexmotion_plant`` (add new ones here).
@@ -270,6 +317,14 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     ),
     _p("plant.disturbance.time_s", D, "s, >= 0", "when it acts, from the first non-zero force (the first move)"),
     _p("plant.disturbance.value", D, "N s (impulse) or N (step)", "its size"),
+    _p(
+        "plant.noise_std",
+        D,
+        "units of each channel, >= 0: one value or one per measured channel",
+        "white noise on the measurements topic",
+        also=DA,
+    ),
+    _p("plant.noise_seed", I, "integer >= 0", "seed of the measurement noise"),
 )
 
 #: Parameters rclpy declares on every node.
@@ -284,12 +339,19 @@ KNOWN_PREFIXES: tuple[str, ...] = ("qos_overrides.", "design.")
 #: Every known parameter by name.
 KNOWN: dict[str, ParameterInfo] = {
     p.name: p
-    for p in CONFIG_PARAMETERS + METHOD_OPTIONS + PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS
+    for p in CONFIG_PARAMETERS
+    + METHOD_OPTIONS
+    + PLANNER_NODE_PARAMETERS
+    + PLANT_NODE_PARAMETERS
+    + MEASUREMENT_PARAMETERS
+    + ROS_PARAMETERS
 }
 #: Names of the method options.
 OPTION_NAMES: frozenset[str] = frozenset(p.name for p in METHOD_OPTIONS)
 #: Names that are neither configuration nor method options (nodes, rclpy).
-NODE_NAMES: frozenset[str] = frozenset(p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + ROS_PARAMETERS)
+NODE_NAMES: frozenset[str] = frozenset(
+    p.name for p in PLANNER_NODE_PARAMETERS + PLANT_NODE_PARAMETERS + MEASUREMENT_PARAMETERS + ROS_PARAMETERS
+)
 
 
 def option(name: str) -> ParameterInfo:
@@ -406,7 +468,7 @@ def check_type(name: str, value: Any) -> None:
         ) from None
     if t is None:
         return
-    if t == info.type:
+    if t == info.type or (info.also is not None and t == info.also):
         if info.choices:
             check_choice(name, value, info.choices)
         return

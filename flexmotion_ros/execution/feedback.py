@@ -3,30 +3,34 @@
 ``feedback.replan_period_s > 0``: during a move the planner estimates the
 machine's state with a Kalman filter on its own modal model
 (:mod:`flexmotion_ros.core.estimation.kalman`), fed with the commands it sent
-and the measurements, and every period replans from the estimate
-(:func:`~.replan.replan`), spliced ahead of the planning time as a preemption
-is.  :class:`StreamEstimator` keeps the filter in step with the stream:
+and the plant's ``measurements`` (physical coordinates ``y = C x + D u`` with
+noise, :mod:`flexmotion_ros.core.model.measurement`; the spec of issue 13),
+and every period replans from the estimate (:func:`~.replan.replan`), spliced
+ahead of the planning time as a preemption is.  :class:`StreamEstimator`
+keeps the filter in step with the stream:
 
-* every command sent, ``(k, u)`` in send order (the stream thread calls
+* every command sent, ``(k, u, t)`` in send order, ``t`` the system time
+  just before it was published (the stream thread calls
   :meth:`StreamEstimator.command`);
-* every measurement, in arrival order (:meth:`StreamEstimator.measurement`):
-  the state *after* a command -- the lockstep plant's ``joint_states`` (one
-  reliable message per command, in order, ``effort`` = the command it
-  applied, which pairs them: :class:`StreamEstimator`);
+* every reading ``(stamp, y)`` (:meth:`StreamEstimator.measurement`): the
+  plant reads sample ``k`` just after command ``k`` is applied, ``y_k = C x_k
+  + D u_k``, and a lockstep plant stamps it with the command's DDS send time;
+  so a reading belongs to the last command sent at or before its stamp (a
+  real-time plant stamps its own ticks: the pairing is then to the sample
+  whose command was sent last before the tick, within one sample);
 * a move from idle restarts the filter at the plan's start state when its
   first command is sent (:meth:`StreamEstimator.restart`).
 
-:meth:`StreamEstimator.estimate` filters as far as the measurements go, then
-predicts with the commands sent since (no measurement yet): the estimate of
-the state before the next sample, with its covariance.
-
-Measurements: the full state ``[p, v, q_1, q_1', ...]`` of ``joint_states``
-(``C = I``, std ``feedback.measurement_std``), the fallback until the plant's
-``measurements`` topic of physical coordinates (issue 13) is wired here.
+:meth:`StreamEstimator.estimate` filters as far as the readings go (update
+with ``y_k - D u_k``, then predict with ``u_k``; a sample whose reading never
+came -- a later one did -- is predicted only), then predicts with the
+commands sent since: the estimate of the state before the next sample, with
+its covariance.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 from collections import deque
@@ -39,9 +43,6 @@ import numpy as np
 from ..core.errors import ConfigError
 from ..core.estimation.kalman import Estimate, KalmanModel, kalman_model, predict, update
 from ..core.model.modal_model import ModalModel
-
-#: A measurement pairs with its command if the command it reports applying agrees to this (relative to 1 + |u|).
-PAIRING_RTOL = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -114,13 +115,6 @@ class StreamEstimate:
 class StreamEstimator:
     """A Kalman filter kept in step with the command stream (module docstring).
 
-    Pairing: the ``m``-th measurement received is the state after command
-    ``m - offset`` (both counted in arrival / send order).  The offset is
-    found once per move from idle: the first measurement after the restart
-    that reports applying the move's first non-zero command (bit for bit)
-    answers that command -- earlier measurements (idle holds, samples lost
-    before DDS matched) are dropped.  Every later pair is checked the same way.
-
     Parameters
     ----------
     model : ModalModel
@@ -128,36 +122,45 @@ class StreamEstimator:
     dt : float
         Sample period (s).
     settings : FeedbackSettings
+    C : array_like, shape ``(m, n)``
+        The readings from the state (``MeasurementMap.for_model``).
+    D : array_like, shape ``(m,)``
+        Their feedthrough of the input (acceleration channels; 0 otherwise).
+
+    Raises
+    ------
+    ModelError
+        The readings cannot observe a mode (or the rigid body) at this sample period.
     """
 
-    def __init__(self, model: ModalModel, dt: float, settings: FeedbackSettings) -> None:
-        n = model.n_states
+    def __init__(self, model: ModalModel, dt: float, settings: FeedbackSettings, C, D=None) -> None:
+        C = np.atleast_2d(np.asarray(C, float))
         self.km: KalmanModel = kalman_model(
-            model, dt, np.eye(n), settings.measurement_std, input_noise_std=settings.input_noise_std
+            model, dt, C, settings.measurement_std, input_noise_std=settings.input_noise_std
         )
+        self._D = np.zeros(C.shape[0]) if D is None else np.asarray(D, float).ravel()
         self._std = settings.measurement_std
         self._lock = threading.Lock()
-        self._commands: deque[tuple[int, int, float]] = deque()  # (send index, k, u) of the move
-        self._measurements: deque[tuple[int, np.ndarray, float]] = deque()  # (arrival index, y, applied)
+        self._commands: deque[tuple[int, int, float, int]] = deque()  # (send index, k, u, send time ns)
+        self._readings: dict[int, np.ndarray] = {}  # send index -> reading of the state before that command
+        self._unpaired: deque[tuple[int, np.ndarray]] = deque()  # readings whose command is not logged yet
         self._sent = 0
-        self._measured = 0
         self._pending: tuple[int, np.ndarray] | None = None  # (first sample, start state) of a move from idle
-        self._low = 0  # measurements before this index came before the move
-        self._offset: int | None = None
         self._est: Estimate | None = None
         self._at = -1  # send index of the command the estimate comes before
-        self._measured_to = -1  # the sample after the last measurement used
-        #: Why the filter stopped (a measurement that did not pair with its command), "" while fine.
-        self.fault = ""
+        self._latest_read = -1  # the latest send index a reading paired with
+        self._measured_to = -1  # the sample after the last reading used
+        #: Readings used, and readings dropped (before the move, or no command to pair with).
+        self.used = 0
+        self.dropped = 0
 
     def restart(self, first_sample: int, x0) -> None:
         """A move from idle: when its first command (global sample ``first_sample``) is sent, the state is ``x0``."""
         with self._lock:
             self._pending = (int(first_sample), np.array(x0, float))
-            self._low = self._measured
 
-    def command(self, k: int, u: float) -> None:
-        """Command ``u`` sent at global sample ``k`` (the stream thread)."""
+    def command(self, k: int, u: float, t_ns: int) -> None:
+        """Command ``u`` sent at global sample ``k``, at system time ``t_ns`` (the stream thread)."""
         with self._lock:
             j = self._sent
             self._sent += 1
@@ -166,67 +169,68 @@ class StreamEstimator:
                 self._at = j
                 self._measured_to = int(k)
                 self._pending = None
-                self._offset = None
                 self._commands.clear()
-                self.fault = ""
+                self._readings.clear()
+                self._latest_read = j - 1
             if self._est is not None:
-                self._commands.append((j, int(k), float(u)))
+                self._commands.append((j, int(k), float(u), int(t_ns)))
 
-    def measurement(self, y, applied: float) -> None:
-        """The next measurement in arrival order: the state after a command (``applied``: that command)."""
+    def measurement(self, stamp_ns: int, y) -> None:
+        """A reading stamped ``stamp_ns`` (system time ns; the subscription's thread)."""
         with self._lock:
-            m = self._measured
-            self._measured += 1
-            if self._est is not None or self._pending is not None:
-                self._measurements.append((m, np.asarray(y, float), float(applied)))
+            if self._est is not None:
+                self._unpaired.append((int(stamp_ns), np.asarray(y, float)))
 
-    def _sync(self) -> None:
-        """Find the offset: the move's first non-zero command and the first measurement reporting it."""
-        meas = self._measurements
-        while meas and meas[0][0] < self._low:
-            meas.popleft()
-        first = next(((j, u) for j, _, u in self._commands if u != 0.0), None)
-        if first is None:
+    def _pair(self) -> None:
+        """Each reading to the last command sent at or before its stamp (readings wait for their command)."""
+        cmds = self._commands
+        if not cmds:
+            self.dropped += len(self._unpaired)
+            self._unpaired.clear()
             return
-        j, u = first
-        for m, _, applied in meas:
-            if applied == u:
-                self._offset = m - j
-                break
-        if self._offset is not None:
-            while meas and meas[0][0] - self._offset < self._at:
-                meas.popleft()
+        times = [c[3] for c in cmds]
+        while self._unpaired:
+            stamp, y = self._unpaired[0]
+            i = bisect.bisect_right(times, stamp) - 1
+            if i < 0:  # before the move's first command (or a command already filtered): nothing to pair with
+                self._unpaired.popleft()
+                self.dropped += 1
+                continue
+            if i == len(cmds) - 1:
+                break  # after the last command logged: it may be the reading of one not logged yet
+            self._unpaired.popleft()
+            j = cmds[i][0]
+            self._readings[j] = y
+            self._latest_read = max(self._latest_read, j)
 
     def estimate(self) -> StreamEstimate | None:
-        """Filter what has been measured, then predict with the commands sent since; None before a move."""
+        """Filter what has been read, then predict with the commands sent since; None before a move."""
         with self._lock:
             est = self._est
-            if est is None or self.fault:
+            if est is None:
                 return None
-            if self._offset is None:
-                self._sync()
-            cmds, meas = self._commands, self._measurements
-            while self._offset is not None and cmds and meas and meas[0][0] - self._offset == cmds[0][0]:
-                j, k, u = cmds.popleft()
-                _, y, applied = meas.popleft()
-                if abs(applied - u) > PAIRING_RTOL * (1.0 + abs(u)):
-                    self.fault = (
-                        f"the measured state after command {j} reports applying {applied!r}, the stream sent {u!r}: "
-                        "measurements and commands do not pair (one measured state per command, in order)"
-                    )
-                    self._est = None
-                    return None
-                est, _ = update(self.km, predict(self.km, est, u), y)
+            self._pair()
+            cmds = self._commands
+            while cmds and cmds[0][0] == self._at:
+                j, k, u, _ = cmds[0]
+                y = self._readings.pop(j, None)
+                if y is None and self._latest_read <= j:
+                    break  # its reading may still come
+                if y is not None:
+                    est, _ = update(self.km, est, y - self._D * u)
+                    self.used += 1
+                est = predict(self.km, est, u)
+                cmds.popleft()
                 self._at = j + 1
                 self._measured_to = k + 1
             self._est = est
             measured_to = self._measured_to
-            ahead = [(k, u) for _, k, u in cmds]
-        # predict with the commands not yet measured (outside the lock: the stream thread appends meanwhile)
+            ahead = [(k, u) for _, k, u, _ in cmds]
+        # predict with the commands not yet read (outside the lock: the stream thread appends meanwhile)
         for _, u in ahead:
             est = predict(self.km, est, u)
         sample = ahead[-1][0] + 1 if ahead else measured_to
         return StreamEstimate(x=est.x, P=est.P, sample=sample, measured_to=measured_to)
 
 
-__all__ = ["PAIRING_RTOL", "FeedbackSettings", "StreamEstimate", "StreamEstimator", "feedback_settings"]
+__all__ = ["FeedbackSettings", "StreamEstimate", "StreamEstimator", "feedback_settings"]

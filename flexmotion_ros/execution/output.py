@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
@@ -234,7 +235,10 @@ class OutputStream(CommandStream):
     ros_ns : callable
         ``ros_ns(t)``: the node's clock (integer ns) at the stream clock's time ``t`` (s).
     on_sample : callable, optional
-        ``on_sample(k, u)`` after each sample sent (the model input ``u``), in the stream thread.
+        ``on_sample(k, u, t_ns)`` after each sample sent (the model input ``u``; ``t_ns``: the system time
+        just before it was published, 0 in trajectory mode), in the stream thread.
+    on_publish : callable, optional
+        ``on_publish(u)`` just before each value is published on ``commands`` (stream mode), in the stream thread.
     on_start_now : callable, optional
         ``on_start_now(segment)`` when a move from idle is installed (its ``start`` set), before its first sample.
     **kwargs
@@ -252,7 +256,8 @@ class OutputStream(CommandStream):
         joint_name: str,
         publish_trajectory: Callable[[JointTrajectory], None] | None = None,
         ros_ns: Callable[[float], int] | None = None,
-        on_sample: Callable[[int, float], None] | None = None,
+        on_sample: Callable[[int, float, int], None] | None = None,
+        on_publish: Callable[[float], None] | None = None,
         on_start_now: Callable[[Segment], None] | None = None,
         on_fault: Callable[[StreamHalt], None] | None = None,
         **kwargs: Any,
@@ -265,6 +270,8 @@ class OutputStream(CommandStream):
         self._publish_trajectory = publish_trajectory
         self._ros_ns = ros_ns or (lambda t: round(t * NS))
         self._on_sample = on_sample
+        self._on_publish = on_publish
+        self._sent_ns = 0
         self._on_start_now = on_start_now
         self._user_on_fault = on_fault
         self._delay = settings.delay_samples(rate_hz)
@@ -297,12 +304,16 @@ class OutputStream(CommandStream):
             return
         # an ending (stop, fault: the stream no longer runs) or idle: the hold of the interface
         ending = not self.running or self.idle
-        self._publish_value(self.encoder.hold() if ending and value == HOLD else self.encoder.encode(value))
+        setpoint = self.encoder.hold() if ending and value == HOLD else self.encoder.encode(value)
+        if self._on_publish is not None:
+            self._on_publish(value)
+        self._sent_ns = time.time_ns()  # just before DDS stamps it: a reading stamped with it pairs with this sample
+        self._publish_value(setpoint)
 
     def step(self):
         out = super().step()
         if out is not None and out.value is not None and self._on_sample is not None:
-            self._on_sample(out.sample, out.value)
+            self._on_sample(out.sample, out.value, self._sent_ns)
         return out
 
     # --------------------------------------------------------------- timeline

@@ -41,6 +41,7 @@ def plan_summary(result: PlanResult, plan_time_s: float) -> dict[str, Any]:
         "final_state_error": float(s.final_state_error),
         "plan_time_s": float(plan_time_s),
         "peak_command": float(np.max(np.abs(s.commands))) if s.samples else 0.0,
+        **({"chosen_method": result.info["chosen_method"]} if "chosen_method" in result.info else {}),
     }
 
 

@@ -42,6 +42,7 @@ from rclpy.parameter import Parameter
 from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
 from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
+from ..core.model.measurement import MeasurementMap, measurement_map, noise_levels
 from ..core.model.modal_model import ModalModel
 from ..core.parameters import METHOD_OPTIONS, check_name, check_type, required_options
 
@@ -65,6 +66,8 @@ class Spec:
         A change cannot apply live (fixed at start-up).
     fp_range, int_range : tuple, optional
         ``(from, to)`` for a descriptor range.
+    dynamic : bool
+        Dynamically typed (e.g. a double or a double array).
     """
 
     name: str
@@ -73,9 +76,10 @@ class Spec:
     read_only: bool = False
     fp_range: tuple[float, float] | None = None
     int_range: tuple[int, int] | None = None
+    dynamic: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
-        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only, dynamic_typing=self.dynamic)
         if self.fp_range is not None:
             d.floating_point_range = [
                 FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)
@@ -218,6 +222,8 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.01, 3600.0),
         ),
         *_goal_specs(),
+        *measurement_specs(),
+        *identification_specs(),
     ]
 
 
@@ -369,6 +375,100 @@ def _actuator_specs() -> list[Spec]:
     ]
 
 
+def measurement_specs() -> list[Spec]:
+    """``measurement.*``: the machine's measured channels (:mod:`flexmotion_ros.core.model.measurement`)."""
+    tail = " Fixed at start-up."
+    return [
+        Spec(
+            "measurement.names",
+            Parameter.Type.STRING_ARRAY,
+            "physical coordinate names of the channels on 'measurements' (sensor_msgs/JointState), unique; empty: "
+            "the rigid-body position only." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.map",
+            Parameter.Type.DOUBLE_ARRAY,
+            "row-major len(measurement.names) x (1 + modes): y = map @ [p, q_1, ..., q_N] (velocity and "
+            "acceleration channels: the same row on the derivatives)." + tail,
+            read_only=True,
+        ),
+        Spec(
+            "measurement.kinds",
+            Parameter.Type.STRING_ARRAY,
+            "one per name: position (m), velocity (m/s) or acceleration (m/s^2, feeds the command through); "
+            "empty: all position." + tail,
+            read_only=True,
+        ),
+    ]
+
+
+def identification_specs() -> list[Spec]:
+    """``identification.*``: ``~/identify`` and learning from moves (:mod:`.planner_identify`)."""
+    tail = " A change applies to the next identification."
+    return [
+        Spec(
+            "identification.band",
+            Parameter.Type.DOUBLE_ARRAY,
+            "frequency band [lo, hi] (rad/s, 0 < lo < hi < 0.8 x pi x rate_hz) of the ~/identify excitation; empty: "
+            "half the lowest to 1.5 x the highest modal frequency." + tail,
+        ),
+        Spec(
+            "identification.modes",
+            -1,
+            "number of modes identified, in [0, 8]; -1: as many as the model has (a different count is never "
+            "adopted)." + tail,
+            int_range=(-1, 8),
+        ),
+        Spec(
+            "identification.duration_s",
+            0.0,
+            "length (s) of the ~/identify excitation (a quarter more of quiet tail follows), in [0, 120]; 0: four "
+            "periods of the band's low end." + tail,
+            fp_range=(0.0, 120.0),
+        ),
+        Spec(
+            "identification.adopt",
+            False,
+            "true: ~/identify adopts every model parameter the data contradict (its value outside the 95 % "
+            "interval) for the next goal, through these parameter services; false: it only reports." + tail,
+        ),
+        Spec(
+            "identification.learn_from_moves",
+            False,
+            "true: each move's commands and measurements (from a move from rest on, with the ringdown while idle) "
+            "refine the model when the estimate is confident (see identification.max_omega_interval).",
+        ),
+        Spec(
+            "identification.ringdown_s",
+            2.0,
+            "learning: idle time (s) recorded after a move before its record is fitted, in [0, 60].",
+            fp_range=(0.0, 60.0),
+        ),
+        Spec(
+            "identification.max_omega_interval",
+            0.01,
+            "confident: every identified frequency's 95 % half-width below this fraction of it, in (0, 1]; "
+            "otherwise nothing is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_zeta_interval",
+            0.01,
+            "confident: every identified damping ratio's 95 % half-width below this, in (0, 1]; otherwise nothing "
+            "is adopted.",
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "identification.max_record_s",
+            60.0,
+            "learning: the longest record (s of samples) from a move from rest on, in (0, 120]; longer, a new one "
+            "starts at the next move from rest.",
+            fp_range=(0.0, 120.0),
+        ),
+    ]
+
+
 #: Planner parameters that are not part of the core's PlannerConfig.
 PLANNER_NODE_ONLY = frozenset(
     {
@@ -512,6 +612,23 @@ def plant_specs() -> list[Spec]:
             0.0,
             "the disturbance: impulse (N s) or step (N). Fixed at start-up.",
             read_only=True,
+        ),
+        *measurement_specs(),
+        Spec(
+            "plant.noise_std",
+            0.0,
+            "white noise (standard deviation, units of each channel: m, m/s, m/s^2) added to 'measurements': one "
+            "value for every channel or one per channel (a double array), each >= 0; 0: exact readings. Fixed at "
+            "start-up.",
+            read_only=True,
+            dynamic=True,
+        ),
+        Spec(
+            "plant.noise_seed",
+            0,
+            "seed of the measurement noise (integer >= 0): the same seed gives the same noise. Fixed at start-up.",
+            read_only=True,
+            int_range=(0, 2**62),
         ),
     ]
 
@@ -669,6 +786,12 @@ class PlantConfig:
         Initial rigid-body position (m or rad).
     apply_at : str
         Real time: commands act from their ``"arrival"`` or ``"send"`` time.
+    measurement : MeasurementMap or None
+        The channels published on ``measurements`` (None: the rigid-body position).
+    noise_std : tuple of float
+        White-noise standard deviation per channel (units of the channel).
+    noise_seed : int
+        Seed of that noise.
     """
 
     nominal: ModalModel
@@ -679,6 +802,9 @@ class PlantConfig:
     coulomb_force: float
     initial_position: float
     apply_at: str = "arrival"
+    measurement: MeasurementMap | None = None
+    noise_std: tuple[float, ...] = ()
+    noise_seed: int = 0
 
     @property
     def dt(self) -> float:
@@ -727,7 +853,15 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     apply_at = str(values.get("plant.apply_at", "arrival"))
     if apply_at not in ("arrival", "send"):
         raise ConfigError("plant.apply_at", f"must be 'arrival' or 'send', got {apply_at!r}")
+    measurement = measurement_map(values, n)
+    noise = noise_levels(values.get("plant.noise_std", 0.0), measurement.channels)
+    seed = values.get("plant.noise_seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError("plant.noise_seed", f"must be an integer >= 0, got {seed!r}")
     return PlantConfig(
+        measurement=measurement,
+        noise_std=tuple(float(x) for x in noise),
+        noise_seed=int(seed),
         apply_at=apply_at,
         nominal=nominal,
         model=model,

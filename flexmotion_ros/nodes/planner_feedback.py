@@ -3,8 +3,9 @@
 ``feedback.replan_period_s > 0``: during a move, a thread wakes every period,
 asks the state estimator (:class:`~flexmotion_ros.execution.feedback.StreamEstimator`:
 a Kalman filter on the planner's model, fed by the stream with every command
-sent and by an internal reliable subscription to ``state.topic`` with every
-measured state) for the state before the next sample, and calls
+sent and by an internal reliable subscription to the plant's ``measurements``
+-- physical coordinates ``measurement.names`` through ``measurement.map``,
+which must observe every mode) for the state before the next sample, and calls
 :func:`~flexmotion_ros.execution.replan.replan`: on plan (the estimate agrees
 with the timeline: nothing changes -- with an exact model and no disturbance
 the move is the open-loop plan, sample for sample), or a new plan to the same
@@ -14,10 +15,12 @@ there if the timeline has not changed meanwhile.  A replan that fails leaves
 the current plan running; ``/diagnostics`` says why (``feedback.*``).  No
 replan while a goal is being planned (the goal replaces the move anyway).
 
-The measurements are the lockstep plant's ``joint_states`` (one reliable
-message per command, in order, ``effort`` = the command applied, which checks
-the pairing): closed-loop replanning needs ``output: stream`` and a lockstep
-plant for now; the plant's ``measurements`` topic (issue 13) is the next source.
+A reading is paired with the command sent last before its stamp (a lockstep
+plant stamps each reading with its command's send time: exact; a real-time
+plant stamps its own ticks: within one sample).  Closed-loop replanning needs
+``output: stream`` for now (the commands' send times); each plan then keeps
+holding for a settle window (two periods + 0.2 s) in which the loop can still
+correct what it left.
 """
 
 from __future__ import annotations
@@ -30,22 +33,21 @@ from typing import Any
 import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-from ..core.errors import ConfigError, FlexmotionError
+from ..core.errors import ConfigError, ModelError
+from ..core.model.measurement import measurement_map
 from ..execution.feedback import FeedbackSettings, StreamEstimator, feedback_settings
-from ..execution.measured_state import state_vector
 from ..execution.output import OutputMode
 from ..execution.replan import ReplanStatus, replan
 from ..execution.summary import plan_summary
 from ..execution.timeline import Segment
 from .planner_goals import MoveRecord
+from .plant_measurements import MEASUREMENT_QOS
+from .plant_measurements import TOPIC as MEASUREMENTS_TOPIC
 
 #: The settle window after each plan: two replanning periods and this (s), see :meth:`FeedbackGlue._feedback_setup`.
 SETTLE_EXTRA_S = 0.2
-#: Measured states for the filter: reliable and deep, every one in order (a lost one would break the pairing).
-FEEDBACK_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 
 
 class FeedbackGlue:
@@ -71,7 +73,17 @@ class FeedbackGlue:
                 "closed-loop replanning needs output: stream for now (the filter pairs each measured state with "
                 "the command that produced it); set it to 0.0 with output: trajectory",
             )
-        self._estimator = StreamEstimator(self._config.model, 1.0 / self._config.rate_hz, self._fb)
+        model = self._config.model
+        self._fb_map = measurement_map(values, model.n_modes)
+        C, D = self._fb_map.for_model(model)
+        try:
+            self._estimator = StreamEstimator(model, 1.0 / self._config.rate_hz, self._fb, C, D)
+        except ModelError as exc:
+            raise ConfigError(
+                "measurement.map",
+                f"closed-loop replanning needs measurements that observe every mode: {exc.reason} "
+                f"(measured: {list(self._fb_map.names)})",
+            ) from None
         # every plan keeps holding for two periods and 0.2 s after its last command: the window in which the
         # loop still sees the machine and can correct it (otherwise the move would end with what it left)
         self.stream.settle_samples = math.ceil((2.0 * self._fb.replan_period_s + SETTLE_EXTRA_S) * self._config.rate_hz)
@@ -82,8 +94,8 @@ class FeedbackGlue:
             use_global_arguments=False,
             start_parameter_services=False,
         )
-        topic = self.resolve_topic_name(self._state.topic)
-        self._fb_node.create_subscription(JointState, topic, self._on_feedback_state, FEEDBACK_QOS)
+        self._fb_topic = self.resolve_topic_name(MEASUREMENTS_TOPIC)
+        self._fb_node.create_subscription(JointState, self._fb_topic, self._on_reading, MEASUREMENT_QOS)
         self._fb_executor = SingleThreadedExecutor(context=self.context)
         self._fb_executor.add_node(self._fb_node)
         self._fb_spin = threading.Thread(target=self._fb_spin_loop, name="flexmotion-feedback-sub", daemon=True)
@@ -92,11 +104,11 @@ class FeedbackGlue:
         self._fb_thread.start()
 
     def feedback_subscribed(self) -> bool:
-        """The feedback's state subscription is matched by a publisher (a lockstep plant)."""
+        """The feedback's ``measurements`` subscription is matched by a publisher (the plant)."""
         node = getattr(self, "_fb_node", None)
         if node is None:
             return False
-        return node.count_publishers(self.resolve_topic_name(self._state.topic)) > 0
+        return node.count_publishers(self._fb_topic) > 0
 
     def _fb_spin_loop(self) -> None:
         try:
@@ -123,11 +135,11 @@ class FeedbackGlue:
         self._estimator = None
 
     # ------------------------------------------------------------- the filter
-    def _feedback_sample(self, k: int, u: float) -> None:
-        """The stream thread: command ``u`` sent at sample ``k``."""
+    def _feedback_sample(self, k: int, u: float, t_ns: int) -> None:
+        """The stream thread: command ``u`` sent at sample ``k``, at system time ``t_ns``."""
         est = self._estimator
         if est is not None:
-            est.command(k, u)
+            est.command(k, u, t_ns)
 
     def _feedback_move_start(self, seg: Segment) -> None:
         """A move from idle is installed: the filter restarts at its start state when its first command goes out."""
@@ -137,15 +149,17 @@ class FeedbackGlue:
             # the deviation is judged against the whole move (the stream forgets the segments it has played)
             self._fb_move_size = float(np.ptp(seg.states[:, 0])) or 1.0
 
-    def _on_feedback_state(self, msg: JointState) -> None:
+    def _on_reading(self, msg: JointState) -> None:
+        """One reading of ``measurements`` (its channels put in ``measurement.names`` order)."""
         est = self._estimator
         if est is None:
             return
+        names = list(msg.name)
         try:
-            y = state_vector(self._state_joints, msg.name, msg.position, msg.velocity)
-        except FlexmotionError:
-            return
-        est.measurement(y, float(msg.effort[0]) if len(msg.effort) else float("nan"))
+            y = [msg.position[names.index(n)] for n in self._fb_map.names]
+        except (ValueError, IndexError):
+            return  # not our channels
+        est.measurement(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, y)
 
     # ------------------------------------------------------------- replanning
     def _feedback_loop(self) -> None:
@@ -241,4 +255,4 @@ class FeedbackGlue:
         }
 
 
-__all__ = ["FEEDBACK_QOS", "FeedbackGlue"]
+__all__ = ["FeedbackGlue"]

@@ -151,6 +151,7 @@ class LifecycleTransitions:
         if listener is not None:
             self._listener = None
             listener.close()
+        self._close_identification()
         destroy = {
             "subscription": self.destroy_subscription,
             "service": self.destroy_service,

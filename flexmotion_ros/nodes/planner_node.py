@@ -114,6 +114,7 @@ from ..execution import (
     PLAN_TIME_WINDOW,
     Segment,
 )
+from ..execution.learning import identification_settings
 from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
 from ..execution.requests import RequestWorker
@@ -131,6 +132,7 @@ from .parameters import (
 )
 from .planner_feedback import FeedbackGlue
 from .planner_goals import GoalHandling
+from .planner_identify import IdentifyHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_output import OutputGlue, check_output
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
@@ -157,7 +159,14 @@ LATCHED_QOS = QoSProfile(
 
 
 class PlannerNode(
-    OutputGlue, FeedbackGlue, GoalHandling, StopHandling, StreamGlue, LifecycleTransitions, LifecycleNode
+    OutputGlue,
+    FeedbackGlue,
+    GoalHandling,
+    StopHandling,
+    IdentifyHandling,
+    StreamGlue,
+    LifecycleTransitions,
+    LifecycleNode,
 ):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
@@ -295,6 +304,7 @@ class PlannerNode(
 
         self._make_stream(v, rate)
         self._feedback_setup(v)  # closed-loop replanning (planner_feedback), off unless feedback.replan_period_s
+        self._setup_identification(v)  # ~/identify, measurements, learning (planner_identify.py)
         self._worker.start()
         # A full garbage collection over everything imported (rclpy, scipy, ...) takes
         # ~100 ms on a loaded machine and holds the GIL: measured as a 100 ms hole in
@@ -335,6 +345,7 @@ class PlannerNode(
         if listener is not None:
             self._listener = None
             listener.close()
+        self._close_identification()
         super().destroy_node()
         # Jazzy's LifecycleNode leaves its state machine alive, and it holds the rcl node: the node, and
         # with the last node of a context its DDS participant, lived on until the garbage collector found
@@ -354,6 +365,7 @@ class PlannerNode(
 
     def _validate(self, candidate: dict[str, Any]) -> None:
         check_output(candidate, planner_config(candidate).model)  # e.g. model.c != 0 for a velocity joint
+        identification_settings(candidate)
 
     def _apply_parameters(self, params) -> None:
         if self._lifecycle not in ("inactive", "active"):
@@ -364,6 +376,7 @@ class PlannerNode(
         self._max_points = int(v["max_trajectory_points"])
         self._frame_id = str(v["frame_id"])
         self.stream.hold_when_idle = bool(v["publish_hold_when_idle"])
+        self._apply_identification(v)
         changed = ", ".join(f"{p.name}={messages._text(p.value)}" for p in params)
         self.get_logger().info(f"parameters set ({changed}); the next goal uses them")
 
@@ -393,6 +406,7 @@ class PlannerNode(
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
             **self._output_status(),
             **self._feedback_status(),
+            **self._identification_values(),
         }
 
     def _check_streaming_ready(self) -> None:

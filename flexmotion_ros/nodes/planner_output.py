@@ -78,6 +78,7 @@ class OutputGlue:
             publish_trajectory=publish_trajectory,
             ros_ns=self._ros_ns_of,
             on_sample=getattr(self, "_feedback_sample", None),
+            on_publish=getattr(self, "_record_sent", None),  # the commands sent, for identification
             on_start_now=getattr(self, "_feedback_move_start", None),
             **kwargs,
         )

@@ -78,6 +78,7 @@ class StreamGlue:
         return now_ros + (self.stream.time_of(k) - time.monotonic())
 
     def _on_segment_start(self, seg: Segment) -> None:
+        self._identification_segment_started(seg)
         rec = seg.info
         if isinstance(rec, MoveRecord) and rec.from_idle:
             self._sent_at_start = self.stream.samples_sent - 1
@@ -85,6 +86,7 @@ class StreamGlue:
             self._status.first_command(seg.started_at - rec.requested_at)
 
     def _on_move_finished(self, seg: Segment) -> None:
+        self._identification_move_ended()
         # called in the stream thread: the statistics, the log line and /diagnostics go to the status
         # thread (measured: done here, they delayed the next samples by tens of ms under load)
         n, sent = self.stream.samples_sent - self._sent_at_start, self.stream.samples_sent

@@ -35,6 +35,7 @@ from ..core.errors import ConfigError, FlexmotionError
 from ..core.interfaces.command import CommandInterface, check_acceleration_model, command_interface
 from ..execution.actuator import Actuator, TrajectoryPlayback, disturbance_settings, servo_settings
 from ..execution.trajectory import NS
+from .plant_measurements import stamp_from_ns
 from .trajectory_messages import trajectory_from_msg
 
 #: Trajectories in: reliable, keep last 10 (a replacement is never dropped for an older one).
@@ -110,11 +111,16 @@ class ActuatorGlue:
         return True
 
     # ------------------------------------------------------------- commands
-    def _actuated_command(self, value: float) -> None:
-        """Lockstep: one setpoint, one sample period, exactly (under the node's lock)."""
+    def _actuated_command(self, value: float, info: dict | None = None) -> None:
+        """Lockstep: one setpoint, one sample period, exactly (under the node's lock).
+
+        The sensors read the state when the command is applied, stamped with its send time (plant_measurements).
+        """
         act = self._actuator
         t = act.t_ns + self._period_ns
         act.set(value, t)
+        sent = info.get("source_timestamp") if info else None
+        self._measure.publish(act.x, act.applied, stamp_from_ns(sent) if sent else self.get_clock().now().to_msg())
         act.advance_to(t)
         self.x = self.x_event = act.x
         self.u = act.applied
@@ -150,12 +156,15 @@ class ActuatorGlue:
         self.u = act.applied
         self.applied += 1
         self._publish(self.u)
+        self._measure.publish(act.x, self.u, stamp_from_ns(t_ns))  # the reading at the sample instant
 
     def _on_trajectory_tick(self) -> None:
         """Real time: install what arrived (from its receipt), integrate to now, publish."""
         with self._lock:
-            self._trajectory_advance(time.time_ns())
+            now = time.time_ns()
+            self._trajectory_advance(now)
             self._publish(self.u)
+            self._measure.publish(self.x, self.u, stamp_from_ns(now))
 
     def _trajectory_advance(self, now_ns: int) -> None:
         pb, act = self._playback, self._actuator

@@ -5,7 +5,10 @@
 Subscribes to ``commands`` (std_msgs/Float64MultiArray, first element = u)
 and publishes ``joint_states`` (sensor_msgs/JointState: ``rigid_body``,
 ``mode_1`` ... ``mode_N``; position and velocity of each; effort = the
-applied command on every joint) and its status on ``/diagnostics``.
+applied command on every joint), what its sensors read on ``measurements``
+(physical coordinates ``measurement.names``, with white noise
+``plant.noise_std``; :mod:`.plant_measurements`) and its status on
+``/diagnostics``.
 
 Integration is exact (zero-order hold, the core's matrix-exponential
 propagation :func:`core.simulation.step_matrices` of the simulated model; no
@@ -65,6 +68,7 @@ from .parameters import (
     validating_callback,
 )
 from .plant_actuator import ActuatorGlue
+from .plant_measurements import MeasurementPublisher, stamp_from_ns
 from .runner import run
 
 NODE_NAME = "flexmotion_plant"
@@ -130,6 +134,7 @@ class PlantNode(ActuatorGlue, Node):
         self._actuator_setup(self._values())  # command interface, servo, disturbance, input (plant_actuator)
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
+        self._measure = MeasurementPublisher(self, cfg)  # 'measurements': the sensors (plant_measurements.py)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # commands one at a time, in order; the timers in their own groups (or trajectories: plant_actuator)
         if not self._actuator_interfaces(self._values()):
@@ -187,6 +192,8 @@ class PlantNode(ActuatorGlue, Node):
             self._coulomb = simulate_coulomb if cfg.coulomb_force > 0.0 else None
             self._timeout_us = round(cfg.command_timeout / TIME_QUANTUM)
             self._stamp_key = "source_timestamp" if cfg.apply_at == "send" else "received_timestamp"
+            if hasattr(self, "_measure"):
+                self._measure.configure(cfg)
 
     # ----------------------------------------------------------- integration
     def _step(self, x: np.ndarray, h: float, u: float, h_key: int | None = None) -> np.ndarray:
@@ -271,9 +278,13 @@ class PlantNode(ActuatorGlue, Node):
         with self._lock:
             self.received += 1
             if self._actuator is not None:  # a servo, a disturbance (plant_actuator)
-                self._actuated_command(u)
+                self._actuated_command(u, info)
                 return
             if self.cfg.lockstep:
+                # y_k read just after u_k is applied, stamped with the command's send time (sample k's time)
+                sent = info.get("source_timestamp") if info else None
+                stamp = stamp_from_ns(sent) if sent else self.get_clock().now().to_msg()
+                self._measure.publish(self.x_event, u, stamp)
                 self.x = self.x_event = self._step(self.x_event, self.cfg.dt, u)
                 self.u = u
                 self.applied += 1
@@ -292,6 +303,7 @@ class PlantNode(ActuatorGlue, Node):
             self.x = self._state_at(now)
             held = now <= self._cutoff()
             self._publish(self.u if held else 0.0)
+            self._measure.publish(self.x, self.u if held else 0.0, self.get_clock().now().to_msg())
             # the force is cut now: say so now (issue 16: the counter and the warning came 10 s later)
             reported = not held and self.u != 0.0 and self._note_timeout()
         if reported:
@@ -343,6 +355,9 @@ class PlantNode(ActuatorGlue, Node):
                 # writer-side matches: a subscriber knows it will get every sample published from now on
                 "joint_states_subscribers": self._pub.get_subscription_count(),
                 "joint_states_published": self.published,
+                "measurements_subscribers": self._measure.subscription_count(),
+                "measurements_published": self._measure.published,
+                "measurement_channels": ", ".join(self._measure.map.names),
                 "diagnostics_subscribers": self._diag_pub.get_subscription_count(),
                 **self._actuator_status(),
             }

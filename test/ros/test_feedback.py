@@ -1,7 +1,8 @@
 """Closed-loop replanning with real nodes (issue 14): a lockstep plant whose model is wrong and which is hit.
 
 The plant's frequencies are 5 % above the planner's model and a force impulse
-hits it mid-move.  The same goal, the same plant, in the same test: open loop
+hits it mid-move; the planner's Kalman filter reads both masses' positions on
+the plant's ``measurements`` topic.  The same goal, the same plant, in the same test: open loop
 (``feedback.replan_period_s: 0``) and closed loop (every 0.1 s, from the
 Kalman filter's estimate); after arrival the closed loop's residual vibration
 and position error are at least 10x smaller.  With an exact model and no
@@ -21,8 +22,17 @@ from flexmotion_ros.nodes.plant_node import PlantNode
 
 from .conftest import NAMESPACE, overrides, wait_for
 
-#: Wie-Bernstein at 100 Hz: a 1.0 move takes 4.22 s.
-WB = {"model.b0": 0.5, "model.omega": [2**0.5], "model.zeta": [0.0], "model.b": [1.0], "u_max": 1.0, "rate_hz": 100.0}
+#: Wie-Bernstein at 100 Hz (a 0.5 move takes 3.0 s); both masses measured: x1 = p + q / 2, x2 = p - q / 2.
+WB = {
+    "model.b0": 0.5,
+    "model.omega": [2**0.5],
+    "model.zeta": [0.0],
+    "model.b": [1.0],
+    "u_max": 1.0,
+    "rate_hz": 100.0,
+    "measurement.names": ["mass_1", "mass_2"],
+    "measurement.map": [1.0, 0.5, 1.0, -0.5],
+}
 PLANT = {k: v for k, v in WB.items() if k != "u_max"}
 #: 5 % frequency error, and an impulse of 0.1 N s 1.5 s into the move (the rigid body's speed jumps by 0.05 m/s).
 HIT = {
@@ -48,7 +58,7 @@ def pair(ros, ns: str, planner: dict, plant: dict):
     wait_for(lambda: p.commands_publisher.get_subscription_count() >= 1, 10.0, "the plant's commands")
     wait_for(lambda: goal.get_subscription_count() >= 1, 10.0, "the goal topic")
     if p._estimator is not None:
-        wait_for(p.feedback_subscribed, 10.0, "the feedback's joint_states")
+        wait_for(p.feedback_subscribed, 10.0, "the feedback's measurements")
     return p, q, goal
 
 

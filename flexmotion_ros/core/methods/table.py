@@ -24,7 +24,7 @@ from ..model.boundary import MoveProblem
 from ..parameters import METHOD_OPTIONS, ParameterInfo
 from ..results import PlanResult
 from ..simulation.prepared import PreparedMove, prepare
-from . import fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
+from . import auto_robust, fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
 from .common import check_move_budget
 
 Planner = Callable[[PlannerConfig, "MoveProblem | PreparedMove", "float | None"], PlanResult]
@@ -58,7 +58,7 @@ class Method:
 def _rows() -> dict[str, Method]:
     rows = [Method(name=time_optimal.METHOD_NAME, description=time_optimal.DESCRIPTION, planner=time_optimal.plan)]
     rows += [Method(name=n, description=d, planner=p) for n, (d, p) in shaped.SHAPER_METHODS.items()]
-    for module in (robust, friction, fixed_time, min_fuel, limited):
+    for module in (robust, friction, fixed_time, min_fuel, limited, auto_robust):
         rows.append(Method(name=module.METHOD_NAME, description=module.DESCRIPTION, planner=module.plan))
     return {
         row.name: Method(

@@ -1,0 +1,441 @@
+"""Identification on the machine: ``~/identify`` and learning from moves (a part of :class:`~.planner_node.PlannerNode`).
+
+``~/identify`` (std_srvs/Trigger), from rest: designs a bounded excitation
+of ``identification.band`` (:func:`~flexmotion_ros.core.identification.design_excitation`:
+``|u| <= u_max``, inside the position limits, back at rest where it started
+for the believed model, a quiet tail for the ringdown), plays it through the
+normal command stream (so the hold ends it, and a stop, a goal, a
+deactivation or a shutdown cut it off with the hold like any move), records
+the machine's ``measurements`` and the commands actually sent, paired by
+sample (:func:`~flexmotion_ros.execution.learning.paired_record`), fits the
+modal model (:func:`~flexmotion_ros.core.identification.identify`) and
+answers with the numbers: each frequency and damping ratio with its 95 %
+interval, ``b0``, the noise and the fit.  With ``identification.adopt: true``
+every parameter the data contradict (its current value outside the 95 %
+interval) takes the estimate, through the node's own parameter services
+(``set_parameters_atomically``: validated like any ``ros2 param set``, visible
+to ``ros2 param get``); the next goal plans with it.  Refused with the reason:
+not active, a move in progress, no fresh measured state or not at rest, no
+publisher on ``measurements``, readings missing or stale, the fit refused
+(the core's one-line reason), the excitation cut off.
+
+``identification.learn_from_moves: true``: a record starts at a move from
+rest (measured), takes every command sent and every reading from then on
+(later moves, their ringdowns) up to ``identification.max_record_s``; once the
+machine has been idle for ``identification.ringdown_s`` the record is fitted
+and, when confident (intervals narrower than ``identification.max_omega_interval``
+/ ``identification.max_zeta_interval``), adopted as above.  The log and
+``/diagnostics`` say what was learned.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+import numpy as np
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from ..core.errors import FlexmotionError
+from ..core.identification.excitation import design_excitation
+from ..core.model.measurement import MeasurementMap, measurement_map
+from ..core.simulation.exact import modal_amplitudes, simulate_samples
+from ..execution.learning import (
+    RECORD_CAPACITY_S,
+    REST_TOL,
+    ExcitationRecord,
+    IdentificationSettings,
+    SignalLog,
+    default_band,
+    fit_record,
+    identification_settings,
+    model_update,
+    paired_record,
+    summary,
+)
+from ..execution.timeline import Segment
+from .planner_goals import MoveRecord
+from .plant_measurements import MEASUREMENT_QOS, TOPIC
+
+#: After the excitation's last command, readings may still be in flight this long (s) beyond ``state.timeout_s``.
+READINGS_GRACE_S = 2.0
+#: The learner checks for an idle machine this often (s).
+LEARN_POLL_S = 0.05
+
+
+class MeasurementListener:
+    """``measurements`` on an internal node and executor of its own; each reading goes into ``log``.
+
+    Parameters
+    ----------
+    owner : Node
+        The planner (context, namespace, remappings).
+    names : tuple of str
+        ``measurement.names``: the columns of ``log`` (a message's channels are put in this order).
+    log : SignalLog
+        Where the readings go (stamp ns, values).
+    """
+
+    def __init__(self, owner: Node, names: tuple[str, ...], log) -> None:
+        self.log = log
+        self.names = tuple(names)
+        self.mismatched = 0  # messages whose names are not measurement.names
+        self.topic = owner.resolve_topic_name(TOPIC)
+        self._node = Node(
+            f"{owner.get_name()}_measurements",
+            namespace=owner.get_namespace(),
+            context=owner.context,
+            use_global_arguments=False,
+            start_parameter_services=False,
+        )
+        self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
+        self._executor = SingleThreadedExecutor(context=owner.context)
+        self._executor.add_node(self._node)
+        self._thread = threading.Thread(target=self._spin, name="flexmotion-measurements", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin()
+        except Exception:  # noqa: BLE001 -- context shut down under us: nothing more to receive
+            pass
+
+    def _on(self, msg: JointState) -> None:
+        names = tuple(msg.name)
+        if names == self.names:
+            values = msg.position
+        else:
+            index = {n: i for i, n in enumerate(names)}
+            if not all(n in index for n in self.names) or len(msg.position) != len(names):
+                self.mismatched += 1
+                return
+            values = [msg.position[index[n]] for n in self.names]
+        self.log.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, values)
+
+    def publisher_count(self) -> int:
+        """Publishers matched on ``measurements``."""
+        return self._node.count_publishers(self.topic)
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=1.0)
+        self._thread.join(timeout=2.0)
+        self._node.destroy_node()
+
+
+class _Refused(Exception):
+    """An identification refused: the reason is the message."""
+
+
+class IdentifyHandling:
+    """``~/identify`` and learning from moves (a mixin of :class:`~.planner_node.PlannerNode`)."""
+
+    # ------------------------------------------------------------------ setup
+    def _setup_identification(self, v: dict[str, Any]) -> None:
+        """Logs, the ``measurements`` listener, ``~/identify`` and the learner thread (configure)."""
+        self._ident: IdentificationSettings = identification_settings(v)
+        self._mmap: MeasurementMap = measurement_map(v, self._config.model.n_modes)
+        capacity = int(math.ceil(RECORD_CAPACITY_S * self._config.rate_hz)) + 1
+        self._sent_log = SignalLog(capacity, 1)
+        self._readings = SignalLog(capacity, self._mmap.channels)
+        self._measurements = MeasurementListener(self, self._mmap.names, self._readings)
+        self._ident_lock = threading.Lock()
+        self._ident_status: dict[str, Any] = {"identification": "none yet", "learned_updates": 0}
+        #: The learning record: index of its first command in the sent log (None: no record).
+        self._record_first: int | None = None
+        self._ringdown_holds = False  # the stream holds for a ringdown, not for publish_hold_when_idle
+        self._record_moves = 0
+        self._last_end: tuple[int, float] | None = None  # (sent index of the last hold, monotonic time)
+        self._fitted_upto = -1  # the last sent index a learning fit covered
+        self.learned: list[str] = []  # what each learning fit did (for tests and the log)
+        self._learn_stop = threading.Event()
+        self._learner = threading.Thread(target=self._learn_loop, name="flexmotion-learn", daemon=True)
+        self._learner.start()
+        self.create_service(Trigger, "~/identify", self._on_identify, callback_group=ReentrantCallbackGroup())
+
+    def _close_identification(self) -> None:
+        """Stop the learner and the listener (cleanup, destroy)."""
+        stop = getattr(self, "_learn_stop", None)
+        if stop is not None:
+            stop.set()
+            self._learner.join(timeout=5.0)
+        listener = getattr(self, "_measurements", None)
+        if listener is not None:
+            self._measurements = None
+            listener.close()
+
+    def _apply_identification(self, v: dict[str, Any]) -> None:
+        self._ident = identification_settings(v)
+
+    def _identification_values(self) -> dict[str, Any]:
+        """Values on /diagnostics."""
+        return dict(self._ident_status)
+
+    # --------------------------------------------------------- stream hooks
+    def _record_sent(self, value: float) -> None:
+        """The stream thread, just before publishing a command: log its system time and value."""
+        self._sent_log.append(time.time_ns(), (value,))
+
+    def _identification_segment_started(self, seg: Segment) -> None:
+        """The stream thread, after a segment's first command: where it is in the sent log."""
+        index = self._sent_log.count - 1
+        rec = seg.info
+        if isinstance(rec, ExcitationRecord):
+            rec.first = index
+            rec.started.set()
+            return
+        if not (isinstance(rec, MoveRecord) and self._ident.learn_from_moves):
+            return
+        if self._record_first is not None:
+            self._record_moves += 1  # a later move: the record goes on
+            return
+        x0 = seg.states[0]
+        still = abs(x0[1]) <= REST_TOL and np.all(modal_amplitudes(self._config.model, x0) <= REST_TOL)
+        if rec.from_idle and still:
+            self._record_first, self._record_moves, self._fitted_upto = index, 1, -1
+
+    def _identification_move_ended(self) -> None:
+        """The stream thread, after the hold that ends a timeline: the ringdown starts.
+
+        While a learning record is open the stream keeps sending the hold for
+        ``identification.ringdown_s`` (whatever ``publish_hold_when_idle``
+        says), so that a lockstep plant, which advances only with commands,
+        rings down in the record; then it goes silent again.
+        """
+        self._last_end = (self._sent_log.count - 1, time.monotonic())
+        if self._record_first is not None and self._ident.learn_from_moves and not self.stream.hold_when_idle:
+            self._ringdown_holds = True
+            self.stream.hold_when_idle = True
+
+    # -------------------------------------------------------------- service
+    async def _on_identify(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        done: Future = Future()
+
+        def work() -> None:
+            try:
+                out = self.identify_now()
+            except Exception as exc:  # noqa: BLE001 -- identify_now refuses instead of raising; never unanswered
+                out = (False, f"{type(exc).__name__}: {exc}")
+            done.set_result(out)
+            self._wake_executor()
+
+        threading.Thread(target=work, name="flexmotion-identify", daemon=True).start()
+        response.success, response.message = await done
+        return response
+
+    def identify_now(self) -> tuple[bool, str]:
+        """Run the excitation, record, fit, report (and adopt): ``(success, message)``; never raises for bad input."""
+        if not self._ident_lock.acquire(blocking=False):
+            return self._ident_refuse("an identification is already running")
+        try:
+            return self._identify()
+        except _Refused as exc:
+            return self._ident_refuse(str(exc))
+        except FlexmotionError as exc:
+            return self._ident_refuse(str(exc))
+        finally:
+            self._ident_lock.release()
+
+    def _ident_refuse(self, reason: str) -> tuple[bool, str]:
+        self.get_logger().error(f"~/identify: refused: {reason}")
+        self._ident_status["identification"] = f"refused: {reason}"
+        self.publish_diagnostics()
+        return False, reason
+
+    def _check_at_rest(self) -> np.ndarray:
+        """The measured state, at rest, or :class:`_Refused` with the reason."""
+        if self._lifecycle != "active":
+            raise _Refused(f"the planner is {self._lifecycle} (lifecycle): activate it to identify")
+        if not self.stream.idle:
+            raise _Refused("not at rest: a move is in progress; identify from rest")
+        if self.commands_publisher.get_subscription_count() == 0:
+            raise _Refused("no subscriber is matched on 'commands': nothing would move")
+        if self._listener is None:
+            raise _Refused("state.source is 'assumed': identification needs the measured state to start from rest")
+        x0 = self._listener.store.fresh(self._state_joints, self._state.timeout_s, self._listener.topic)
+        amp = float(np.max(modal_amplitudes(self._config.model, x0), initial=0.0))
+        if abs(x0[1]) > REST_TOL or amp > REST_TOL:
+            raise _Refused(
+                f"not at rest: velocity {x0[1]:.3g}, largest modal amplitude {amp:.3g} (allowed {REST_TOL:g}); "
+                "wait for the machine to settle (or ~/stop it)"
+            )
+        if self._measurements.publisher_count() == 0:
+            raise _Refused(f"measurements: no publisher on {self._measurements.topic!r}: nothing to record")
+        return x0
+
+    def _identify(self) -> tuple[bool, str]:
+        cfg, settings, mmap = self._config, self._ident, self._mmap
+        modes = settings.modes_for(cfg.model)
+        if modes > 0 and not np.any(mmap.sees_modes()):
+            raise _Refused(
+                f"measurement.map: no measured channel ({', '.join(mmap.names)}) reads a mode; give "
+                "measurement.names/map (flexmotion model ... writes them)"
+            )
+        x0 = self._check_at_rest()
+        band = settings.band or default_band(cfg.model, cfg.rate_hz)
+        exc = design_excitation(
+            cfg.model,
+            cfg.u_max,
+            cfg.rate_hz,
+            band,
+            duration=settings.duration_s,
+            position_limits=(cfg.position_min, cfg.position_max),
+            start=float(x0[0]),
+        )
+        K = exc.commands.size
+        if K + 1 > self._sent_log.capacity:
+            raise _Refused(
+                f"identification.duration_s: {exc.duration:.4g} s is longer than the {RECORD_CAPACITY_S:g} s kept"
+            )
+        states = simulate_samples(cfg.model, cfg.model.rest_state(float(x0[0])), exc.commands, 1.0 / cfg.rate_hz)
+        rec = ExcitationRecord(band=tuple(band))
+        seg = Segment(np.asarray(exc.commands, float), np.asarray(states, float), info=rec)
+        with self._install_lock:
+            if not self.stream.idle:
+                raise _Refused("not at rest: a move started meanwhile")
+            self.stream.start_now(seg)
+            version = self.stream.version
+            self.installed.append(seg)
+            self._position = float(x0[0])
+            self._predicted_end = np.array(states[-1], float)
+        self._ident_status["identification"] = f"exciting {band[0]:.4g}..{band[1]:.4g} rad/s for {exc.duration:.4g} s"
+        self.get_logger().info(
+            f"~/identify: exciting {band[0]:.4g}..{band[1]:.4g} rad/s for {exc.duration:.4g} s ({K} samples, peak "
+            f"{exc.peak:.4g}, set by {exc.bound}) from {x0[0]:.6g}, at sample {seg.start}"
+        )
+        self.publish_diagnostics()
+        self._wait_played(seg, version, exc.duration)
+        last = rec.first + K  # the explicit hold that ends it
+        self._wait_readings(last)
+        record = paired_record(self._sent_log, self._readings, rec.first, last, None, 1.0 / cfg.rate_hz)
+        result = fit_record(record, mmap, cfg.model, modes, cfg.u_max)
+        update = model_update(cfg.model, result, settings)
+        text = summary(result) + ("" if record.exact else " (readings on the plant's clock: approximate pairing)")
+        adopted = ""
+        if settings.adopt:
+            adopted = self._adopt(update, "~/identify")
+        else:
+            adopted = "not adopted (identification.adopt: false)" + (
+                f"; the data contradict: {', '.join(update.changes)}" if update.changes else ""
+            )
+        message = f"identified: {text}; {adopted}"
+        self._ident_status["identification"] = message
+        self.get_logger().info(f"~/identify: {message}")
+        self.publish_diagnostics()
+        return True, message
+
+    def _wait_played(self, seg: Segment, version: int, duration: float) -> None:
+        """Until the excitation has played to its hold; :class:`_Refused` if it was cut off."""
+        if not seg.info.started.wait(5.0):
+            raise _Refused("the excitation did not start within 5 s")
+        end = time.monotonic() + duration + 10.0
+        while True:
+            halted = self.stream.halted
+            if halted is not None:
+                raise _Refused(f"cut off: {halted.describe()}; nothing identified")
+            if self.stream.version != version:
+                raise _Refused("cut off by a stop or a goal during the excitation (with the hold); nothing identified")
+            if self.stream.idle:
+                return
+            if time.monotonic() > end:
+                raise _Refused("the excitation did not end in time")
+            time.sleep(0.01)
+
+    def _wait_readings(self, last: int) -> None:
+        """Until a reading stamped at or after command ``last`` was sent arrives (a lagging plant), or time out."""
+        t_last = int(self._sent_log.rows(last, last)[0][0])
+        end = time.monotonic() + self._state.timeout_s + READINGS_GRACE_S
+        while self._readings.first_at_or_after(t_last) >= self._readings.count:
+            if time.monotonic() > end:
+                return  # paired_record says what is missing
+            time.sleep(0.01)
+
+    def _adopt(self, update, source: str) -> str:
+        """Set the changed model.* parameters through the node's own validated path; the outcome in words."""
+        if not update.confident:
+            return f"not adopted: not confident ({update.reason})"
+        params = [Parameter(k, value=v) for k, v in update.parameters.items()]
+        result = self.set_parameters_atomically(params) if params else None
+        if result is not None and not result.successful:
+            return f"not adopted: the parameters were refused ({result.reason})"
+        intervals = (
+            "; auto_robust.omega_min/max set to the 95 % intervals"
+            if "auto_robust.omega_min" in update.parameters
+            else ""
+        )
+        if not update.changes:
+            return "nothing adopted: the data agree with the model" + intervals
+        self._ident_status["learned_updates"] = int(self._ident_status.get("learned_updates", 0)) + 1
+        return "adopted for the next goal: " + ", ".join(update.changes) + intervals
+
+    # ------------------------------------------------------------- learning
+    def _learn_loop(self) -> None:
+        while not self._learn_stop.wait(LEARN_POLL_S):
+            try:
+                self._learn_step()
+            except Exception as exc:  # noqa: BLE001 -- learning never takes the node down
+                self.get_logger().error(f"learning from moves: {type(exc).__name__}: {exc}")
+                self._record_first = None
+
+    def _end_ringdown_holds(self) -> None:
+        """The ringdown is recorded: the stream holds while idle only if ``publish_hold_when_idle`` says so."""
+        if self._ringdown_holds:
+            self._ringdown_holds = False
+            self.stream.hold_when_idle = bool(self.get_parameter("publish_hold_when_idle").value)
+
+    def _learn_step(self) -> None:
+        first, ended = self._record_first, self._last_end
+        if not self._ident.learn_from_moves:
+            self._end_ringdown_holds()
+        if first is None or ended is None or not self._ident.learn_from_moves:
+            return
+        end_index, end_time = ended
+        if end_index <= self._fitted_upto or end_index < first or not self.stream.idle:
+            return
+        if time.monotonic() - end_time < self._ident.ringdown_s:
+            return
+        self._end_ringdown_holds()
+        cfg, settings = self._config, self._ident
+        # the commands whose readings are in: a lockstep plant may lag the stream, whose holds go on while idle
+        newest = self._readings.count - 1
+        if newest < 0:
+            return
+        stamp = int(self._readings.rows(newest, newest)[0][0])
+        last = self._sent_log.first_at_or_after(stamp + 1) - 1
+        if last < end_index:
+            return  # the move's own readings are not all in yet
+        if (last - first) / cfg.rate_hz > settings.max_record_s:
+            self._record_first = None
+            self.learned.append("record dropped: longer than identification.max_record_s")
+            self.get_logger().info(
+                f"learning from moves: the record exceeds identification.max_record_s = {settings.max_record_s:g} s; "
+                "a new one starts at the next move from rest"
+            )
+            return
+        self._fitted_upto = end_index
+        try:
+            record = paired_record(self._sent_log, self._readings, first, last, None, 1.0 / cfg.rate_hz)
+            result = fit_record(record, self._mmap, cfg.model, settings.modes_for(cfg.model), cfg.u_max)
+        except FlexmotionError as exc:
+            note = f"not learned from {self._record_moves} move(s): {exc}"
+            self.learned.append(note)
+            self._ident_status["identification"] = note
+            self.get_logger().info(f"learning from moves: {note}")
+            return
+        update = model_update(cfg.model, result, settings)
+        outcome = self._adopt(update, "learning")
+        note = f"from {self._record_moves} move(s), {record.samples} samples: {summary(result)}; {outcome}"
+        self.learned.append(note)
+        self._ident_status["identification"] = f"learned {note}"
+        self.get_logger().info(f"learning from moves: {note}")
+        self.publish_diagnostics()
+
+
+__all__ = ["IdentifyHandling", "MeasurementListener"]
