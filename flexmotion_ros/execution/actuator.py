@@ -75,7 +75,7 @@ class Disturbance:
         return self.kind is not DisturbanceKind.NONE and self.value != 0.0
 
 
-def disturbance_settings(values: Mapping[str, Any], interface: CommandInterface) -> Disturbance:
+def disturbance_settings(values: Mapping[str, Any], interface: CommandInterface | str) -> Disturbance:
     """Validate ``plant.disturbance.*``.
 
     Raises
@@ -85,6 +85,7 @@ def disturbance_settings(values: Mapping[str, Any], interface: CommandInterface)
         disturbance on a velocity / position joint (its model's input is the
         servo's acceleration, it has no force input).
     """
+    interface = command_interface(interface)
     names = [k.value for k in DisturbanceKind]
     kind = values.get("plant.disturbance.type", "none")
     if kind not in names:
@@ -122,6 +123,7 @@ class ActuatorState:
     due_ns: int | None
     origin_ns: int | None
     kicked: bool
+    braking: bool = False
 
 
 class Actuator:
@@ -215,7 +217,22 @@ class Actuator:
             due_ns = None
         else:
             servo = servo_setpoint(st.servo, float(value), h if h is not None else 1.0, self.interface)
-        self._st = replace(st, servo=servo, due_ns=due_ns, origin_ns=origin)
+        self._st = replace(st, servo=servo, due_ns=due_ns, origin_ns=origin, braking=False)
+
+    def brake(self, h_ns: int) -> None:
+        """A velocity / position joint told to hold: its reference comes to rest in ``h_ns`` (ns), then stays.
+
+        A constant deceleration from the reference's velocity (a servo cannot stop
+        at once); it ends at rest, past the reference position by half the
+        velocity times ``h``.  Effort: nothing (the force is the hold's).
+        """
+        st = self._st
+        if self.interface is CommandInterface.EFFORT:
+            return
+        h = max(int(h_ns), 1)
+        rv = st.servo.reference_velocity
+        servo = replace(st.servo, acceleration=-rv / (h / NS), setpoint=0.0)
+        self._st = replace(st, servo=servo, due_ns=st.t_ns + h, braking=True)
 
     # --------------------------------------------------------------- advance
     def _t_dist(self) -> int | None:
@@ -247,17 +264,20 @@ class Actuator:
             if force:
                 servo = replace(servo, acceleration=servo.acceleration + force)
             arrive = st.due_ns is not None and nxt == st.due_ns
-            servo = servo_advance(self.model, servo, (nxt - st.t_ns) / NS, self.interface, self.servo, arrive=arrive)
+            h = (nxt - st.t_ns) / NS
+            servo = servo_advance(self.model, servo, h, self.interface, self.servo, arrive=arrive and not st.braking)
             servo = replace(servo, acceleration=st.servo.acceleration)
             due = st.due_ns
-            if arrive:  # the servo is at its setpoint: it holds there until the next one
+            if arrive:  # the servo is at its setpoint (or at rest, braking): it holds there until the next one
                 servo = replace(servo, acceleration=0.0)
+                if st.braking:
+                    servo = replace(servo, reference_velocity=0.0)
                 due = None
             kicked = st.kicked
             if td is not None and nxt == td and not kicked and self.disturbance.kind is DisturbanceKind.IMPULSE:
                 servo = replace(servo, x=servo.x + self._B * self.disturbance.value)
                 kicked = True
-            self._st = replace(st, t_ns=nxt, servo=servo, due_ns=due, kicked=kicked)
+            self._st = replace(st, t_ns=nxt, servo=servo, due_ns=due, kicked=kicked, braking=st.braking and not arrive)
 
 
 def hold_point(position: float) -> TrajectoryPoint:
@@ -285,9 +305,11 @@ class TrajectoryPlayback:
         The joint a trajectory must name (alone).
     history : int
         Sample instants kept for a rewind (:meth:`receive_eager`).
+    period_ns : int
+        A velocity / position joint told to hold (after a trajectory's last point) comes to rest in this long (ns).
     """
 
-    def __init__(self, actuator: Actuator, joint_name: str, history: int = 50_000) -> None:
+    def __init__(self, actuator: Actuator, joint_name: str, history: int = 50_000, period_ns: int = 10_000_000) -> None:
         self.actuator = actuator
         self.joint_name = joint_name
         self.settings = ReceiverSettings()  # interpolation none, no look-ahead: point i+1 over [T_i, T_{i+1})
@@ -295,6 +317,9 @@ class TrajectoryPlayback:
         self._before = hold_point(float(actuator.x[0]))
         self._last = self._before
         self._history: deque[_PlaybackState] = deque(maxlen=max(1, int(history)))
+        self._held: TrajectoryPoint | None = None  # the last point a servo joint was told to hold
+        #: How long (ns) a servo joint takes to come to rest on a hold (one sample of the sender).
+        self.period_ns = int(period_ns)
         self.received = 0
         self.rewinds = 0
 
@@ -333,11 +358,12 @@ class TrajectoryPlayback:
         iface = act.interface
         for piece in held_pieces(self._current, act.t_ns, int(t_ns), self.settings, self._before):
             value = piece.point.field(iface)[0]
-            if piece.begins or value != act.setpoint or piece.point is not self._last:
-                due = piece.due_ns
-                if due is None and iface is not CommandInterface.EFFORT:
-                    due = piece.start_ns  # after the last point: hold it where the reference is
-                act.set(value, due)
+            if piece.due_ns is None and iface is not CommandInterface.EFFORT:
+                if piece.point is not self._held:  # after the last point: the servo comes to rest and holds
+                    act.brake(self.period_ns)
+                    self._held = piece.point
+            elif piece.begins or value != act.setpoint or piece.point is not self._last:
+                act.set(value, piece.due_ns)
             self._last = piece.point
             act.advance_to(piece.end_ns)
             if piece.due_ns is not None and piece.end_ns == piece.due_ns:
@@ -362,8 +388,8 @@ class TrajectoryPlayback:
             self._rewind(t0)
         self.install(trajectory, t0)
         end = self.end_ns()
-        if end is not None:
-            self.play_to(end, on_sample)
+        if end is not None:  # to the last point, and one period of its hold (a servo joint comes to rest)
+            self.play_to(end + self.period_ns, on_sample)
         return t0
 
     def _save(self) -> _PlaybackState:

@@ -302,9 +302,9 @@ class OutputStream(CommandStream):
         """The stream's publish: the encoded setpoint (stream mode); nothing in trajectory mode."""
         if self.trajectory_mode:
             return
-        # an ending (stop, fault: the stream no longer runs) or idle: the hold of the interface
-        ending = not self.running or self.idle
-        setpoint = self.encoder.hold() if ending and value == HOLD else self.encoder.encode(value)
+        # idle: the hold of the interface -- after a move's last command, while idle, and on every halt (stop,
+        # fault: the stream empties its timeline before it sends the hold); a zero inside a move is a command
+        setpoint = self.encoder.hold() if value == HOLD and self.idle else self.encoder.encode(value)
         if self._on_publish is not None:
             self._on_publish(value)
         self._sent_ns = time.time_ns()  # just before DDS stamps it: a reading stamped with it pairs with this sample

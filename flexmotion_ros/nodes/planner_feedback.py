@@ -225,6 +225,10 @@ class FeedbackGlue:
                 self._fb_last = "skipped: the timeline changed while replanning (a goal or a stop)"
                 return
             if not self.stream.splice(seg, seg.start):
+                if self.stream.idle:
+                    self._fb_counts["skipped"] += 1
+                    self._fb_last = "skipped: the move ended while replanning"
+                    return
                 self._feedback_failed(
                     f"replanning took {out.plan_time_s * 1e3:.0f} ms, beyond the {lead} sample look-ahead; "
                     "the plan goes on"

@@ -81,9 +81,11 @@ class ActuatorGlue:
                 raise ConfigError("model.c", getattr(exc, "reason", str(exc))) from None
         t0 = 0 if cfg.lockstep and not self._plays_trajectories else time.time_ns()
         self._actuator = Actuator(cfg.model, self.x_event, iface, servo, dist, t_ns=t0)
-        if self._plays_trajectories:
-            self._playback = TrajectoryPlayback(self._actuator, str(values.get("joint_name", "rigid_body")))
         self._period_ns = round(NS / cfg.rate_hz)
+        if self._plays_trajectories:
+            self._playback = TrajectoryPlayback(
+                self._actuator, str(values.get("joint_name", "rigid_body")), period_ns=self._period_ns
+            )
         parts = [f"command_interface {iface.value}"]
         if not servo.ideal and iface is not CommandInterface.EFFORT:
             parts.append(f"first-order servo {servo.bandwidth:g} rad/s")

@@ -150,3 +150,24 @@ def test_real_time_trajectory_is_exact_beside_cpu_burners_where_the_stream_is_no
             b.wait()
     print(f"\nreal time beside 2 CPU burners: residual / move  trajectory {traj:.1e}   stream {stream:.1e}")
     assert traj < 1e-6, x_traj
+
+
+def test_trajectory_output_ends_a_deactivation_with_a_hold_trajectory(ros):
+    """Cut off mid-move: the last trajectory is one point, now (stamp 0), at the reference's position, at rest."""
+    planner = ros.planner(output="trajectory", command_interface="position", **{"trajectory.start_delay_s": 0.1})
+    plant = ros.plant(command_interface="position", **{"plant.input": "trajectory"})
+    got = trajectory_probe(ros)
+    wait_for(lambda: planner.commands_publisher.get_subscription_count() >= 2, 10.0, "trajectory subscribers")
+    wait_for(lambda: ros.probe.goal_pub.get_subscription_count() >= 1, 10.0, "goal topic")
+    ros.probe.goal_pub.publish(Float64(data=1.0))
+    wait_for(lambda: len(planner.installed) >= 1, 10.0, "the plan")
+    time.sleep(0.5)
+    planner.trigger_deactivate()
+    wait_for(lambda: len(got) >= 2, 5.0, "the hold trajectory")
+    hold = got[-1]
+    assert hold.header.stamp.sec == 0 and hold.header.stamp.nanosec == 0 and len(hold.points) == 1
+    p = hold.points[0]
+    assert p.velocities[0] == 0.0 and p.accelerations[0] == 0.0 and 0.0 < p.positions[0] < 1.0
+    time.sleep(0.3)
+    x = plant.state()
+    assert abs(x[0] - p.positions[0]) < 0.05 and abs(x[1]) < 1e-12  # the position servo came to rest there
