@@ -373,7 +373,11 @@ def run_mode(args, mode: str) -> dict:
                             "moving": was_moving,
                             "after": int(m.group(1)) if m else None,
                             "lead": int(m.group(2)) if m else None,
-                            "text": answer_text(resp)[:120],
+                            "replanned": bool(re.search(r"; planned \d+ times", answer_text(resp))),
+                            "leads": int(w.group(1))
+                            if (w := re.search(r"within (\d+) look-aheads", answer_text(resp)))
+                            else 1,
+                            "text": answer_text(resp)[:300],
                         }
                     )
                 else:
@@ -454,12 +458,13 @@ def run_mode(args, mode: str) -> dict:
         mid_move_stops=len(mid_stops),
         stop_answer_ms=[round(s["answer_s"] * 1e3, 3) for s in mid_stops],
         stops_within_50ms=sum(s["answer_s"] <= STOP_ANSWER_BUDGET_S for s in mid_stops),
-        # answered before the stop was spliced, the answer gives the planned sample: a stop whose plan then
-        # overran its look-ahead (the log's "replanning") is counted as late
-        stops_overran=len(re.findall(r"~/stop: planning took .* replanning", log)),
-        stops_within_lead=sum(s["after"] <= s["lead"] for s in mid_stops)
-        - len(re.findall(r"~/stop: planning took .* replanning", log)),
+        # a stop whose plan overran its look-ahead (or found the timeline changed) is planned again from further
+        # ahead; its answer says "planned N times": the others must start within the look-ahead they were given
+        stops_overran=sum(s["replanned"] for s in mid_stops),
+        # a ready stop is taken within READY_STOP_LEADS look-aheads (its answer says how many)
+        stops_within_lead=sum(s["after"] <= s["lead"] * s["leads"] for s in mid_stops if not s["replanned"]),
         stop_after_samples=[s["after"] for s in mid_stops],
+        late_stop_texts=[s["text"] for s in mid_stops if not s["replanned"] and s["after"] > s["lead"] * s["leads"]],
         commands=int(t.size),
         gap_max_ms=float(gaps_ms.max()),
         gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / RATE_HZ)),

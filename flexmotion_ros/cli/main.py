@@ -21,7 +21,8 @@ COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, dem
 
 
 class _NegativeNumber:
-    """Matches every negative number ``float()`` reads (``-5.03e-05``, ``-1E3``, ``-.5``, ``-inf``).
+    """Matches every negative number ``float()`` reads (``-5.03e-05``, ``-1E3``, ``-.5``, ``-inf``),
+    and a comma-separated list of numbers that starts with one (``--goal -3.0,2.0``: one per rigid body).
 
     argparse's own pattern (``-1``, ``-1.5`` only) takes ``-5.03e-05`` for an
     option and fails with "expected one argument"; every parser of the
@@ -32,7 +33,8 @@ class _NegativeNumber:
         if not text.startswith("-") or "_" in text:
             return False
         try:
-            float(text)
+            for part in text.split(","):
+                float(part)
         except ValueError:
             return False
         return True

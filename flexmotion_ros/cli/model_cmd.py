@@ -1,4 +1,8 @@
-"""``flexmotion model``: write a parameter file from physical parameters."""
+"""``flexmotion model``: write a parameter file from physical parameters.
+
+One drive: ``two-mass``, ``crane``, ``chain``.  Several drives (:mod:`.multi_model`):
+``gantry``, ``chain --actuated 0,3`` and ``two-mass --actuated 0,1``.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +14,7 @@ from ..core.errors import ModelError
 from ..core.model.builders import INPUT_KINDS, BuiltModel, chain, crane, two_mass
 from ..core.model.measurement import builder_map
 from ..core.parameter_file import dump_parameters
+from . import multi_model
 
 
 def _floats(text: str) -> list[float]:
@@ -40,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--m2", type=float, required=True, help="mass 2 (kg)")
     t.add_argument("--k", type=float, required=True, help="spring (N/m)")
     t.add_argument("--d", type=float, default=0.0, help="damper (N s/m)")
-    t.set_defaults(func=run, build=lambda a: two_mass(a.m1, a.m2, a.k, a.d))
+    _actuated_options(t)
+    t.set_defaults(func=run, build=lambda a: two_mass(a.m1, a.m2, a.k, a.d), multi=multi_model.build_two_mass)
 
     c = kinds.add_parser("crane", parents=[common], help="overhead crane (cart + payload on a cable)")
     c.add_argument("--cart-mass", type=float, dest="cart_mass", help="cart mass (kg); --input force only")
@@ -62,10 +68,61 @@ def register(sub: argparse._SubParsersAction) -> None:
     n.add_argument("--springs", type=_floats, required=True, help="springs between neighbours (N/m)")
     n.add_argument("--dampers", type=_floats, default=None, help="dampers in parallel (N s/m)")
     n.add_argument("--force-on", type=int, default=0, dest="force_on", help="index of the pushed mass")
-    n.set_defaults(func=run, build=lambda a: chain(a.masses, a.springs, a.dampers, a.force_on))
+    _actuated_options(n)
+    n.set_defaults(
+        func=run, build=lambda a: chain(a.masses, a.springs, a.dampers, a.force_on), multi=multi_model.build_chain
+    )
+
+    g = kinds.add_parser(
+        "gantry",
+        parents=[common],
+        help="gantry crane, two drives: trolley (x) on a bridge (y), payload on a rope (one swing mode per axis)",
+    )
+    g.add_argument("--trolley-mass", type=float, required=True, dest="trolley_mass", help="trolley mass (kg)")
+    g.add_argument("--bridge-mass", type=float, required=True, dest="bridge_mass", help="bridge mass (kg)")
+    g.add_argument("--payload-mass", type=float, required=True, dest="payload_mass", help="payload mass (kg)")
+    g.add_argument("--rope-length", type=float, required=True, dest="rope_length", help="rope length (m)")
+    g.add_argument("--g", type=float, default=9.81, help="gravity (m/s^2)")
+    g.add_argument("--zeta", type=float, default=0.0, help="swing damping ratio")
+    g.add_argument("--trolley-force", type=float, default=1.0, dest="trolley_force", help="trolley drive bound (N)")
+    g.add_argument("--bridge-force", type=float, default=1.0, dest="bridge_force", help="bridge drive bound (N)")
+    g.set_defaults(func=run_multi, build=multi_model.build_gantry)
+
+
+def _actuated_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--actuated",
+        help="several drives: the pushed masses' indices, e.g. 0,3 (a multi-input file; one input per mass)",
+    )
+    p.add_argument(
+        "--u-max-each",
+        dest="u_max_list",
+        help="with --actuated: one force bound per drive (N), e.g. 10,20 (default: --u-max for every drive)",
+    )
+
+
+def _write(args: argparse.Namespace, text: str) -> int:
+    if args.output:
+        with open(args.output, "w") as fh:
+            fh.write(text)
+        sys.stderr.write(f"wrote {args.output}\n")
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+def run_multi(args: argparse.Namespace) -> int:
+    """A multi-input parameter file with the map to physical coordinates in its header."""
+    built = args.build(args)
+    return _write(args, multi_model.text(built, args.kind, args.rate))
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "actuated", None) is not None:
+        args.build = args.multi
+        return run_multi(args)
+    if getattr(args, "u_max_list", None) is not None:
+        raise ModelError("u_max_each", "is for several drives: give --actuated too (else --u-max)")
     built = args.build(args)
     config = PlannerConfig(model=built.model, u_max=args.u_max, rate_hz=args.rate)
     params = config.to_parameters()
@@ -84,11 +141,4 @@ def run(args: argparse.Namespace) -> int:
             f"# input: {built.notes['input']}; u_max is the acceleration bound (m/s^2); "
             "rigid body: the cart (b0 = 1); for a velocity- or position-commanded drive\n"
         )
-    text = dump_parameters(params, header)
-    if args.output:
-        with open(args.output, "w") as fh:
-            fh.write(text)
-        sys.stderr.write(f"wrote {args.output}\n")
-    else:
-        sys.stdout.write(text)
-    return 0
+    return _write(args, dump_parameters(params, header))

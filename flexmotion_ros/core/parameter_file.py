@@ -86,10 +86,20 @@ def _typed_tree(node: yaml.Node, name: str, path: Path, parameter: str) -> Any:
             ros_type(items)
         except TypeError:
             kinds = ", ".join(dict.fromkeys(str(ros_type(v).value) for v in items))
+            names = [
+                i.value
+                for i in node.value
+                if isinstance(i, yaml.ScalarNode) and isinstance(_scalar(i, name, path), bool)
+            ]
+            quote = (
+                f"; rcl reads {', '.join(repr(n) for n in names)} as a bool: quote a name such as 'y'"
+                if names and any(isinstance(v, str) for v in items)
+                else ""
+            )
             raise ConfigError(
                 name,
                 f"{path} line {line}: list items must all have one type (ROS arrays are homogeneous; "
-                f"write doubles as 2.0, not 2), got {kinds}",
+                f"write doubles as 2.0, not 2), got {kinds}{quote}",
             ) from None
         return items
     return _scalar(node, name, path)
@@ -183,7 +193,20 @@ def _float_repr(dumper: yaml.SafeDumper, value: float):
     return dumper.represent_scalar("tag:yaml.org,2002:float", text)
 
 
+def _str_repr(dumper: yaml.SafeDumper, value: str):
+    # a name rcl would type as something else (``y`` is a bool to rcl, ``1`` an integer) is quoted
+    style = "'" if not isinstance(rcl_scalar(value), str) or value in ("null", "~") else None
+    return dumper.represent_scalar("tag:yaml.org,2002:str", value, style=style)
+
+
+def _list_repr(dumper: yaml.SafeDumper, value: list):
+    # lists of values in flow style, [a, b], as ROS parameter files write them (a quoted 'y' would make it block)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", value, flow_style=True)
+
+
 _Dumper.add_representer(float, _float_repr)
+_Dumper.add_representer(str, _str_repr)
+_Dumper.add_representer(list, _list_repr)
 
 
 def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
@@ -193,7 +216,11 @@ def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
         for k, v in params.items()
     }
     clean = {
-        k: ([x if isinstance(x, (str, bool)) else float(x) for x in v] if isinstance(v, (list, tuple)) else v)
+        k: (
+            [float(x) if isinstance(x, int) and not isinstance(x, bool) else x for x in v]
+            if isinstance(v, (list, tuple))
+            else v
+        )
         for k, v in clean.items()
     }
     body = yaml.dump(

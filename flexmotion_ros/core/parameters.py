@@ -89,9 +89,10 @@ class ParameterInfo:
     choices : tuple of str
         The only values a string parameter may take (empty: any); checked
         here, so that ``flexmotion plan`` and the nodes refuse the same file.
-    also : ParameterType or None
-        A second type the value may have (a dynamically typed parameter, e.g.
-        one noise level or one per channel).
+    alternatives : tuple of ParameterType
+        Other ROS types accepted (``model.b0``, ``model.c``, ``u_max``: a double
+        for one input, a double array for several; the nodes declare them with
+        dynamic typing; ``plant.noise_std``: one level or one per channel).
     """
 
     name: str
@@ -101,7 +102,7 @@ class ParameterInfo:
     methods: tuple[str, ...] = ()
     required_by: tuple[str, ...] = ()
     choices: tuple[str, ...] = ()
-    also: ParameterType | None = None
+    alternatives: tuple[ParameterType, ...] = ()
 
 
 def _p(name: str, type_: ParameterType, allowed: str, description: str, **kw: Any) -> ParameterInfo:
@@ -119,12 +120,36 @@ MAX_MOVE_SAMPLES = 100_000
 
 #: The planner configuration (:class:`~flexmotion_ros.core.config.PlannerConfig`).
 CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
-    _p("model.b0", D, "non-zero, e.g. 1/kg", "rigid-body input gain b0"),
-    _p("model.c", D, "1/s, <= 0", "rigid-body viscous term c"),
+    _p(
+        "model.b0",
+        D,
+        "non-zero, e.g. 1/kg; several inputs: k x m, row-major",
+        "rigid-body input gain b0",
+        alternatives=(DA,),
+    ),
+    _p("model.c", D, "1/s, <= 0; several inputs: one per rigid body", "rigid-body viscous term c", alternatives=(DA,)),
     _p("model.omega", DA, "rad/s, each > 0", "undamped modal frequencies"),
     _p("model.zeta", DA, "each in [0, 1)", "modal damping ratios"),
-    _p("model.b", DA, "each non-zero", "modal input gains"),
-    _p("u_max", D, "N or the model's input unit, > 0", "actuator bound |u| <= u_max"),
+    _p("model.b", DA, "each non-zero; several inputs: N x m, row-major", "modal input gains"),
+    _p(
+        "u_max",
+        D,
+        "N or the model's input unit, > 0; several inputs: one per input (or one for all)",
+        "actuator bound |u| <= u_max",
+        alternatives=(DA,),
+    ),
+    # several inputs (issue 12): model.inputs makes a file multi-input (core/multi_input/parse.py)
+    _p("model.inputs", SA, "one name per input (m >= 1)", "the actuated joints (inputs) of a multi-input model"),
+    _p("model.rigid_bodies", SA, "one name per rigid body (k)", "rigid-body coordinates of a multi-input model"),
+    _p("model.mode_names", SA, "one name per mode", "names of the modes of a multi-input model"),
+    _p(
+        "sync",
+        S,
+        "'time', 'none' or 'phase'",
+        "multi-input time_optimal: how the inputs that do not set the time arrive",
+        choices=("time", "none", "phase"),
+    ),
+    _p("fuel_weights", DA, "one per input, each > 0", "multi-input min_fuel: weights c_i of eq. 2.38"),
     _p("rate_hz", D, "Hz, in (0, 1e6]", "command rate"),
     _p("method", S, "a method name", "planning method"),
     _p("limits.position_min", D, "m or rad; -.inf: no limit", "lowest goal position"),
@@ -223,12 +248,19 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
 PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("publish_hold_when_idle", B, "true or false", "keep publishing the hold while idle"),
     _p("stream_priority", I, "integer 0..99", "SCHED_FIFO priority of the stream thread"),
-    _p("initial_position", D, "m or rad", "position assumed at start-up"),
+    _p(
+        "initial_position",
+        D,
+        "m or rad; several rigid bodies: one each",
+        "position assumed at start-up",
+        alternatives=(DA,),
+    ),
     _p("replan_lead_s", D, "s, in [0, 60]", "smallest look-ahead of a preemption"),
     _p("max_trajectory_points", I, "integer >= 2", "most points in a published path"),
     _p("frame_id", S, "a frame name", "frame_id of the answered paths"),
     _p("diagnostics_period_s", D, "s, in [0.01, 3600]", "period of /diagnostics"),
     _p("joint_name", S, "a joint name", "the joint this planner moves"),
+    _p("joint_names", SA, "one name per input", "multi-input: the joints of 'commands', in order"),
     _p(
         "state.source", S, "'measured' or 'assumed'", "start state of a move from idle", choices=("measured", "assumed")
     ),
@@ -304,7 +336,13 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("plant.extra_zeta", DA, "each >= 0", "model error: added damping"),
     _p("plant.coulomb_force", D, "N, >= 0", "simulated Coulomb friction"),
     _p("plant.apply_at", S, "'arrival' or 'send'", "when a command acts", choices=("arrival", "send")),
-    _p("plant.initial_position", D, "m or rad", "initial rigid-body position"),
+    _p(
+        "plant.initial_position",
+        D,
+        "m or rad; several rigid bodies: one each",
+        "initial rigid-body position",
+        alternatives=(DA,),
+    ),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
     _p("plant.input", S, "'commands' or 'trajectory'", "what drives the plant", choices=("commands", "trajectory")),
     _p("plant.servo_bandwidth", D, "rad/s, >= 0; 0: ideal", "first-order servo of a velocity / position joint"),
@@ -322,7 +360,7 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         D,
         "units of each channel, >= 0: one value or one per measured channel",
         "white noise on the measurements topic",
-        also=DA,
+        alternatives=(DA,),
     ),
     _p("plant.noise_seed", I, "integer >= 0", "seed of the measurement noise"),
 )
@@ -468,16 +506,17 @@ def check_type(name: str, value: Any) -> None:
         ) from None
     if t is None:
         return
-    if t == info.type or (info.also is not None and t == info.also):
+    if t == info.type or t in info.alternatives:
         if info.choices:
             check_choice(name, value, info.choices)
         return
     hint = ""
     if info.type == ParameterType.DOUBLE and t == ParameterType.INTEGER:
         hint = f": write {float(value)!r} (ROS types {value!r} as an integer)"
-    elif info.type == ParameterType.DOUBLE_ARRAY and t == ParameterType.INTEGER_ARRAY:
+    elif ParameterType.DOUBLE_ARRAY in (info.type, *info.alternatives) and t == ParameterType.INTEGER_ARRAY:
         hint = f": write {[float(v) for v in value]!r} (ROS types {value!r} as integers)"
-    raise ConfigError(name, f"must be {_a(info.type)} ({info.allowed}), got {_with_type(value)}{hint}")
+    kinds = " or ".join(_a(k) for k in (info.type, *info.alternatives))
+    raise ConfigError(name, f"must be {kinds} ({info.allowed}), got {_with_type(value)}{hint}")
 
 
 def check_parameters(params: Mapping[str, Any], extra: Iterable[str] = ()) -> None:

@@ -37,7 +37,7 @@ from enum import Enum
 
 import numpy as np
 
-from .timeline import HOLD, Segment, predicted_state
+from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -112,7 +112,10 @@ class StreamHalt:
         elif self.last_value is None:
             what = "no command was ever sent"
         else:
-            what = f"the hold could NOT be sent ({self.hold_error}); the last command sent was {self.last_value:.9g}"
+            what = (
+                f"the hold could NOT be sent ({self.hold_error}); the last command sent was "
+                f"{command_text(self.last_value)}"
+            )
         cut = "; the move in progress was cut off" if self.interrupted else ""
         return f"command stream {self.cause.value} ({self.why}): {what}{cut}"
 
@@ -290,7 +293,7 @@ class CommandStream:
                 last = self.last_value
                 k = self._k_next
             hold_sent, error = False, ""
-            if last is not None and last != HOLD:
+            if last is not None and not is_hold(last):
                 try:
                     self._publish(HOLD)
                     hold_sent = True
@@ -303,7 +306,7 @@ class CommandStream:
             self.halted = StreamHalt(
                 cause=cause,
                 why=why,
-                held=last is None or last == HOLD or hold_sent,
+                held=last is None or is_hold(last) or hold_sent,
                 hold_sent=hold_sent,
                 interrupted=interrupted,
                 sample=k,
@@ -498,7 +501,7 @@ class CommandStream:
         if i < 0:  # waiting for a segment queued behind an ended one: at rest
             return idle_value, None, None
         if i < seg.samples:
-            return float(seg.commands[i]), (seg if i == 0 else None), None
+            return seg.command(i), (seg if i == 0 else None), None
         if i == seg.samples:  # the explicit hold that ends a move
             started = seg if seg.samples == 0 else None
             if len(q) == 1:

@@ -33,7 +33,7 @@ from typing import Any
 
 from ..core import errors
 from ..core.config import PlannerConfig
-from ..core.methods.table import plan_move
+from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
 from ..core.results import PlanResult
 
 #: The errors rebuilt as themselves in the parent (by name; the parameter/reason ones with both).

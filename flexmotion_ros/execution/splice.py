@@ -180,6 +180,9 @@ STOP_MARGIN_SAMPLES = 2
 STOP_PREP_DUTY = 0.5
 #: Ready stops kept ahead of the stream (then the preparer waits for the stream to pass one).
 STOP_AHEAD = 2
+#: A ready stop is taken if it starts within this many look-aheads of the request (a stop planned now would
+#: start one look-ahead on, if its plan kept to it); one further on (the preparer fell behind): planned now.
+READY_STOP_LEADS = 2
 #: While paused, the preparer looks again this often (s).
 PAUSE_POLL_S = 0.01
 
@@ -337,13 +340,16 @@ class StopPreparer:
             self._kick = True
             self._cond.notify_all()
 
-    def take(self, wait_s: float = 0.0) -> ReadyStop | None:
+    def take(self, wait_s: float = 0.0, latest: int | None = None) -> ReadyStop | None:
         """Remove and return the earliest stop usable now (against the stream's snapshot); None if none.
 
         Parameters
         ----------
         wait_s : float
             If none is usable but one is being planned, wait up to this long (s) for it.
+        latest : int or None
+            The latest first sample worth taking (samples): a stop planned on demand would start there,
+            so a ready stop starting later is no gain (None: any).
         """
         key = self._key()
         end = time.monotonic() + wait_s
@@ -351,6 +357,8 @@ class StopPreparer:
             k_next, timeline = self._snapshot()
             with self._cond:
                 for i, stop in enumerate(self._ready):
+                    if latest is not None and stop.sample > latest:
+                        break  # earliest first: the others start later still
                     if ready_stop_usable(stop, timeline, k_next, key):
                         del self._ready[: i + 1]
                         return stop
@@ -434,6 +442,7 @@ __all__ = [
     "PLAN_TIME_MARGIN_S",
     "PLAN_TIME_OUTLIERS",
     "PLAN_TIME_WINDOW",
+    "READY_STOP_LEADS",
     "SPLICE_ATTEMPTS",
     "STOP_AHEAD",
     "STOP_MARGIN_SAMPLES",

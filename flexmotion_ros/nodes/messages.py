@@ -43,14 +43,21 @@ from ..execution.measured_state import RIGID_BODY
 ERROR_PREFIX = "error: "
 
 
-def command(value: float) -> Float64MultiArray:
-    """One command sample (N)."""
-    return Float64MultiArray(data=[float(value)])
+def command(value: float, inputs: int = 1) -> Float64MultiArray:
+    """One command sample (N): one value, or ``inputs`` values (all ``value``) for a multi-input machine."""
+    return Float64MultiArray(data=[float(value)] * int(inputs))
 
 
 def command_value(msg: Float64MultiArray) -> float:
     """The command in a ``commands`` message (first element; NaN if empty)."""
     return float(msg.data[0]) if len(msg.data) else math.nan
+
+
+def command_values(msg: Float64MultiArray, inputs: int) -> np.ndarray:
+    """The ``inputs`` values of a multi-input ``commands`` message (NaN if it has another count)."""
+    if len(msg.data) != inputs:
+        return np.full(inputs, math.nan)
+    return np.asarray(msg.data, dtype=float)
 
 
 def decimation(n: int, max_points: int) -> np.ndarray:
@@ -211,7 +218,8 @@ def joint_state(names: list[str], x: np.ndarray, u: float, stamp: Time) -> Joint
     msg.name = list(names)
     msg.position = [float(v) for v in x[0::2]]
     msg.velocity = [float(v) for v in x[1::2]]
-    msg.effort = [float(u)] * len(names)
+    # one input: its command on every joint; several: no effort (one command per input, not per joint)
+    msg.effort = [float(u)] * len(names) if np.ndim(u) == 0 else []
     return msg
 
 

@@ -18,14 +18,20 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from nav_msgs.srv import GetPlan
 from rclpy.task import Future
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.config import PlannerConfig, check_move_samples
 from ..core.errors import FlexmotionError, GoalError, InputError, SolverError
-from ..core.methods.common import check_move_budget
-from ..core.methods.table import plan_move
-from ..core.model.boundary import state_to_rest
+from ..core.multi_input.dispatch import (
+    AnyConfig,
+    check_budgets,
+    move_problem,
+    positions_text,
+    rest_state,
+    state_at_rest,
+    state_size,
+)
+from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
 from ..core.results import PlanResult
 from ..execution import (
     SPLICE_ATTEMPTS,
@@ -36,17 +42,17 @@ from ..execution import (
     plan_summary,
     splice_point,
 )
-from ..execution.measured_state import EarlyArrival, at_rest
+from ..execution.measured_state import AT_REST_TOL, EarlyArrival
 from ..execution.requests import Request, RequestKind
-from . import messages
+from . import messages, multi_axis
 
 
 @dataclass
 class MoveRecord:
     """What a segment on the stream came from."""
 
-    result: PlanResult
-    target: float | None
+    result: PlanResult  # or a MultiPlanResult (several inputs)
+    target: float | np.ndarray | None
     source: str
     requested_at: float  # monotonic (s)
     from_idle: bool
@@ -75,20 +81,39 @@ class Outcome:
     info: dict = field(default_factory=dict)
 
 
-def _plan_here(config: PlannerConfig, problem, rate_hz: float | None) -> PlanResult:
-    """``plan_move`` in this process (looked up at each call: tests replace it)."""
+def _plan_here(config: AnyConfig, problem, rate_hz: float | None) -> PlanResult:
+    """``plan_move`` (``plan_multi_move`` for several inputs) in this process (looked up at each call: tests replace it)."""
     return plan_move(config, problem, rate_hz)
+
+
+def _has_target(problem) -> bool:
+    """A goal (some final position given), not a stop (every final position free)."""
+    include = getattr(problem, "include_position", None)
+    return bool(include) if include is not None else any(t is not None for t in problem.targets)
 
 
 class GoalHandling:
     """The planner node's requests, plans and stops (a mixin of :class:`~.planner_node.PlannerNode`)."""
 
     def _on_goal(self, msg: Float64) -> None:
-        self._submit(RequestKind.GOAL, msg.data, "~/goal")
+        try:  # several rigid bodies: refused with the reason (one target cannot say where each goes)
+            target = multi_axis.goal_target(self._config, msg.data)
+        except FlexmotionError as exc:
+            self._refuse("~/goal", str(exc))
+            return
+        self._submit(RequestKind.GOAL, target, "~/goal")
+
+    def _on_goals(self, msg: Float64MultiArray) -> None:
+        try:
+            target = multi_axis.goals_target(self._config, msg.data)
+        except FlexmotionError as exc:
+            self._refuse("~/goals", str(exc))
+            return
+        self._submit(RequestKind.GOAL, target, "~/goals")
 
     def _on_joint_trajectory(self, msg: JointTrajectory) -> None:
         try:
-            goal = messages.trajectory_goal(msg, self._state.joint_name)
+            goal = multi_axis.trajectory_target(self._config, msg, self._state.joint_name)
         except FlexmotionError as exc:
             self._refuse("~/joint_trajectory", str(exc))
             return
@@ -163,16 +188,25 @@ class GoalHandling:
             self._wake_executor()
 
         kind = RequestKind.GOAL if execute else RequestKind.QUERY
-        self._submit(kind, request.goal.pose.position.x, "~/move" if execute else "~/plan", answer=answer)
+        source = "~/move" if execute else "~/plan"
+        try:  # x (one input); x, y, z: the first three rigid bodies
+            target = multi_axis.pose_target(self._config, request.goal.pose.position)
+        except FlexmotionError as exc:
+            response.plan = messages.error_path(str(exc), self.get_clock().now().to_msg())
+            return response
+        self._submit(kind, target, source, answer=answer)
         out: Outcome = await done
+        config = self._config
         if not out.ok:
             response.plan = messages.error_path(out.reason, self.get_clock().now().to_msg())
         elif out.segment is None:  # already there: a one-pose path
-            states = self._config.model.rest_state(self._position)[None, :]
-            response.plan = messages.path(states, self.stream.dt, out.start_time, self._frame_id, self._max_points)
+            states = rest_state(config.model, self._position)[None, :]
+            response.plan = multi_axis.path(
+                config, states, self.stream.dt, out.start_time, self._frame_id, self._max_points
+            )
         else:
-            response.plan = messages.path(
-                out.segment.states, self.stream.dt, out.start_time, self._frame_id, self._max_points
+            response.plan = multi_axis.path(
+                config, out.segment.states, self.stream.dt, out.start_time, self._frame_id, self._max_points
             )
         return response
 
@@ -239,13 +273,13 @@ class GoalHandling:
         """
         model = self._config.model
         if self._listener is None:
-            return model.rest_state(self._position)
+            return rest_state(model, self._position)
         st = self._state
         if not execute:
             try:
                 return self._listener.store.fresh(self._state_joints, st.timeout_s, self._listener.topic, wait=False)
             except GoalError:
-                return model.rest_state(self._position)
+                return rest_state(model, self._position)
         return self._listener.store.fresh(
             self._state_joints, st.timeout_s, self._listener.topic, expect=self._predicted_end
         )
@@ -263,7 +297,7 @@ class GoalHandling:
             )
         except GoalError:
             return None
-        return None if at_rest(self._config.model, x) else x
+        return None if state_at_rest(self._config.model, x, AT_REST_TOL) else x
 
     def _planner_for(self, problem) -> Callable[..., PlanResult]:
         """Where ``problem`` is planned: the stop child (final position free) or the goal child; else here.
@@ -274,14 +308,14 @@ class GoalHandling:
         children = self._children
         if children is None:
             return _plan_here
-        child = children.goal if problem.include_position else children.stop
+        child = children.goal if _has_target(problem) else children.stop
         if child.dead:
             self.get_logger().error(f"planning process {child.name} is gone: planning in-process from now on")
             self._children = None
             return _plan_here
         return child
 
-    def _plan_to(self, config: PlannerConfig, problem, arrival_time: float | None) -> PlanResult:
+    def _plan_to(self, config: AnyConfig, problem, arrival_time: float | None) -> PlanResult:
         """``plan_move``; with ``arrival_time`` (s) method ``fixed_time`` (``trajectory.early_arrival`` if too early).
 
         In the planning child for goals, or for stops (the final position free), when the node has them.
@@ -309,7 +343,7 @@ class GoalHandling:
 
     def _plan_request(
         self,
-        target: float | None,
+        target,
         execute: bool,
         source: str,
         t_req: float,
@@ -330,20 +364,29 @@ class GoalHandling:
         lead = self._lead_samples()
         for _attempt in range(SPLICE_ATTEMPTS):
             k_next, timeline, version = self.stream.versioned_snapshot()
-            point = splice_point(timeline, k_next, lead, model.n_modes)  # None: idle
+            multi = multi_axis.is_multi(config)
+            point = splice_point(timeline, k_next, lead, None if multi else model.n_modes)  # None: idle
+            if point is not None and point.state.size != state_size(model):
+                raise GoalError(
+                    "model",
+                    f"the state size changed during a move ({point.state.size} -> {state_size(model)}): "
+                    "stop or wait until idle, then send the goal again",
+                )
             if point is None:
                 at = None
                 if target is None:
                     x0 = self._idle_moving_state()  # a machine moving after a restart: stop it
                     if x0 is None:
-                        return Outcome(True, f"already at rest at {self._position:.9g}")
+                        return Outcome(True, f"already at rest at {positions_text(self._position)}")
                 else:
                     x0 = self._idle_start_state(execute)
             else:
                 at, x0 = point.sample, point.state
-            problem = state_to_rest(model, config.u_max, x0, target)
-            check_move_budget(config, problem)  # both budgets in microseconds: an absurd goal never reaches
-            check_move_samples(config, problem)  # the planner
+            # a partial goal keeps the other rigid bodies' targets: where the timeline ends, or where it is now
+            kept_state = timeline[-1].states[-1] if point is not None else x0
+            goal = multi_axis.resolve_target(config, target, kept_state)
+            problem = move_problem(config, x0, goal)
+            check_budgets(config, problem)  # both budgets in microseconds: an absurd goal never reaches the planner
             t0 = time.perf_counter()
             result = self._plan_to(config, problem, arrival_time)
             plan_time = time.perf_counter() - t0
@@ -351,7 +394,7 @@ class GoalHandling:
             sampled = result.sampled
             if sampled is None:
                 raise SolverError(f"method {config.method} returned no sampled command sequence")
-            record = MoveRecord(result, target, source, t_req, at is None, plan_time)
+            record = MoveRecord(result, goal, source, t_req, at is None, plan_time)
             seg = Segment(np.asarray(sampled.commands, float), np.asarray(sampled.states, float), info=record)
             info = plan_summary(result, plan_time)
             if not execute:
@@ -364,8 +407,10 @@ class GoalHandling:
                     self.get_logger().info(f"{source}: the timeline changed while planning; replanning")
                     continue
                 if at is None and seg.samples == 0:
-                    self._position = float(x0[0])  # measured there, at rest
-                    return Outcome(True, f"already at {self._position:.9g}", None, self._ros_time_of(k_next), info)
+                    self._position = multi_axis.position_of(config, x0)  # measured there, at rest
+                    return Outcome(
+                        True, f"already at {positions_text(self._position)}", None, self._ros_time_of(k_next), info
+                    )
                 if at is None or not self.stream.splice(seg, at):
                     # the timeline ran out while planning: valid from rest only if x0 was the rest at its end
                     if at is not None and not ended_at_rest(timeline, at, self.stream.idle):
@@ -379,7 +424,9 @@ class GoalHandling:
                     self._move_requested_at = t_req
                     seg.info.from_idle = True
                     self.stream.start_now(seg)
-                self._installed(seg, target, info, source)
+                info["plan_attempts"] = _attempt + 1  # > 1: the look-ahead was overrun (or the timeline changed)
+                info["planned_at_sample"], info["lead_samples"] = k_next, lead  # the look-ahead this plan had
+                self._installed(seg, goal, info, source)
                 self._predicted_end = np.array(seg.states[-1], float)
                 return Outcome(True, "", seg, self._ros_time_of(seg.start), info)
         raise SolverError(
@@ -390,17 +437,19 @@ class GoalHandling:
         if self._stops is not None:
             self._stops.notify(info.get("plan_time_s"))
         self.installed.append(seg)
-        self._position = float(seg.states[-1, 0])
-        self._status.moving(target if target is not None else self._position, info)
+        config = self._config
+        self._position = multi_axis.position_of(config, seg.states[-1])
+        where = target if target is not None else self._position
+        self._status.moving(where if np.ndim(where) == 0 else positions_text(where), info)
         stamp = messages.to_time(self._ros_time_of(seg.start))
         self._trajectory_pub.publish(
-            messages.planned_trajectory(seg.states, seg.commands, self.stream.dt, stamp, self._max_points)
+            multi_axis.planned_trajectory(config, seg.states, seg.commands, self.stream.dt, stamp, self._max_points)
         )
         if seg.samples + 1 > self._max_points:
             self.get_logger().info(
                 f"~/planned_trajectory decimated: {seg.samples + 1} samples > max_trajectory_points {self._max_points}"
             )
-        what = f"to {target:.9g}" if target is not None else f"stop at {self._position:.9g}"
+        what = f"to {positions_text(target)}" if target is not None else f"stop at {positions_text(self._position)}"
         self.get_logger().info(
             f"{source}: {what}: {info['samples']} samples ({info['duration_s']:.6g} s, certified {info['certified']}), "
             f"planned in {info['plan_time_s'] * 1e3:.1f} ms, from sample {seg.start}"

@@ -37,97 +37,37 @@ from typing import Any
 
 import numpy as np
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..core.errors import FlexmotionError
 from ..core.identification.excitation import design_excitation
 from ..core.model.measurement import MeasurementMap, measurement_map
+from ..core.multi_input.dispatch import n_inputs
 from ..core.simulation.exact import modal_amplitudes, simulate_samples
 from ..execution.learning import (
-    RECORD_CAPACITY_S,
     REST_TOL,
     ExcitationRecord,
     IdentificationSettings,
-    SignalLog,
     default_band,
     fit_record,
     identification_settings,
     model_update,
-    paired_record,
     summary,
 )
+from ..execution.records import RECORD_CAPACITY_S, SignalLog, paired_record
 from ..execution.timeline import Segment
+from .measurement_listener import MeasurementListener
+from .multi_axis import is_multi
 from .planner_goals import MoveRecord
-from .plant_measurements import MEASUREMENT_QOS, TOPIC
 
 #: After the excitation's last command, readings may still be in flight this long (s) beyond ``state.timeout_s``.
 READINGS_GRACE_S = 2.0
+#: ``~/identify`` waits this long (s) for its new ``measurements`` subscription to match a publisher.
+MATCH_WAIT_S = 2.0
 #: The learner checks for an idle machine this often (s).
 LEARN_POLL_S = 0.05
-
-
-class MeasurementListener:
-    """``measurements`` on an internal node and executor of its own; each reading goes into ``log``.
-
-    Parameters
-    ----------
-    owner : Node
-        The planner (context, namespace, remappings).
-    names : tuple of str
-        ``measurement.names``: the columns of ``log`` (a message's channels are put in this order).
-    log : SignalLog
-        Where the readings go (stamp ns, values).
-    """
-
-    def __init__(self, owner: Node, names: tuple[str, ...], log) -> None:
-        self.log = log
-        self.names = tuple(names)
-        self.mismatched = 0  # messages whose names are not measurement.names
-        self.topic = owner.resolve_topic_name(TOPIC)
-        self._node = Node(
-            f"{owner.get_name()}_measurements",
-            namespace=owner.get_namespace(),
-            context=owner.context,
-            use_global_arguments=False,
-            start_parameter_services=False,
-        )
-        self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
-        self._executor = SingleThreadedExecutor(context=owner.context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="flexmotion-measurements", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:  # noqa: BLE001 -- context shut down under us: nothing more to receive
-            pass
-
-    def _on(self, msg: JointState) -> None:
-        names = tuple(msg.name)
-        if names == self.names:
-            values = msg.position
-        else:
-            index = {n: i for i, n in enumerate(names)}
-            if not all(n in index for n in self.names) or len(msg.position) != len(names):
-                self.mismatched += 1
-                return
-            values = [msg.position[index[n]] for n in self.names]
-        self.log.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, values)
-
-    def publisher_count(self) -> int:
-        """Publishers matched on ``measurements``."""
-        return self._node.count_publishers(self.topic)
-
-    def close(self) -> None:
-        self._executor.shutdown(timeout_sec=1.0)
-        self._thread.join(timeout=2.0)
-        self._node.destroy_node()
 
 
 class _Refused(Exception):
@@ -141,11 +81,16 @@ class IdentifyHandling:
     def _setup_identification(self, v: dict[str, Any]) -> None:
         """Logs, the ``measurements`` listener, ``~/identify`` and the learner thread (configure)."""
         self._ident: IdentificationSettings = identification_settings(v)
-        self._mmap: MeasurementMap = measurement_map(v, self._config.model.n_modes)
+        model = self._config.model
+        rigid_names = tuple(model.rigid_bodies) if is_multi(self._config) else ("rigid_body",)
+        self._mmap: MeasurementMap = measurement_map(v, model.n_modes, rigid_names)
         capacity = int(math.ceil(RECORD_CAPACITY_S * self._config.rate_hz)) + 1
-        self._sent_log = SignalLog(capacity, 1)
+        self._sent_width = n_inputs(self._config)  # one column per input (identification fits one input)
+        self._sent_log = SignalLog(capacity, self._sent_width)
         self._readings = SignalLog(capacity, self._mmap.channels)
-        self._measurements = MeasurementListener(self, self._mmap.names, self._readings)
+        self._measurements: MeasurementListener | None = None
+        self._listener_lock = threading.Lock()
+        self._identifying = False
         self._ident_lock = threading.Lock()
         self._ident_status: dict[str, Any] = {"identification": "none yet", "learned_updates": 0}
         #: The learning record: index of its first command in the sent log (None: no record).
@@ -158,7 +103,19 @@ class IdentifyHandling:
         self._learn_stop = threading.Event()
         self._learner = threading.Thread(target=self._learn_loop, name="flexmotion-learn", daemon=True)
         self._learner.start()
+        self._listen_as_needed()
         self.create_service(Trigger, "~/identify", self._on_identify, callback_group=ReentrantCallbackGroup())
+
+    def _listen_as_needed(self) -> MeasurementListener | None:
+        """Subscribe to ``measurements`` only while learning or identifying (a 1 kHz callback costs the stream)."""
+        with self._listener_lock:
+            wanted = self._ident.learn_from_moves or self._identifying
+            if wanted and self._measurements is None:
+                self._measurements = MeasurementListener(self, self._mmap.names, self._readings)
+            elif not wanted and self._measurements is not None:
+                listener, self._measurements = self._measurements, None
+                listener.close()
+            return self._measurements
 
     def _close_identification(self) -> None:
         """Stop the learner and the listener (cleanup, destroy)."""
@@ -166,13 +123,16 @@ class IdentifyHandling:
         if stop is not None:
             stop.set()
             self._learner.join(timeout=5.0)
-        listener = getattr(self, "_measurements", None)
-        if listener is not None:
-            self._measurements = None
-            listener.close()
+        lock = getattr(self, "_listener_lock", None)
+        if lock is not None:
+            with lock:
+                listener, self._measurements = self._measurements, None
+            if listener is not None:
+                listener.close()
 
     def _apply_identification(self, v: dict[str, Any]) -> None:
         self._ident = identification_settings(v)
+        self._listen_as_needed()
 
     def _identification_values(self) -> dict[str, Any]:
         """Values on /diagnostics."""
@@ -181,7 +141,8 @@ class IdentifyHandling:
     # --------------------------------------------------------- stream hooks
     def _record_sent(self, value: float) -> None:
         """The stream thread, just before publishing a command: log its system time and value."""
-        self._sent_log.append(time.time_ns(), (value,))
+        row = (value,) if self._sent_width == 1 else np.broadcast_to(np.asarray(value, float), (self._sent_width,))
+        self._sent_log.append(time.time_ns(), row)
 
     def _identification_segment_started(self, seg: Segment) -> None:
         """The stream thread, after a segment's first command: where it is in the sent log."""
@@ -191,7 +152,7 @@ class IdentifyHandling:
             rec.first = index
             rec.started.set()
             return
-        if not (isinstance(rec, MoveRecord) and self._ident.learn_from_moves):
+        if not (isinstance(rec, MoveRecord) and self._ident.learn_from_moves) or is_multi(self._config):
             return
         if self._record_first is not None:
             self._record_moves += 1  # a later move: the record goes on
@@ -235,12 +196,15 @@ class IdentifyHandling:
         if not self._ident_lock.acquire(blocking=False):
             return self._ident_refuse("an identification is already running")
         try:
+            self._identifying = True
             return self._identify()
         except _Refused as exc:
             return self._ident_refuse(str(exc))
         except FlexmotionError as exc:
             return self._ident_refuse(str(exc))
         finally:
+            self._identifying = False
+            self._listen_as_needed()
             self._ident_lock.release()
 
     def _ident_refuse(self, reason: str) -> tuple[bool, str]:
@@ -266,12 +230,23 @@ class IdentifyHandling:
                 f"not at rest: velocity {x0[1]:.3g}, largest modal amplitude {amp:.3g} (allowed {REST_TOL:g}); "
                 "wait for the machine to settle (or ~/stop it)"
             )
-        if self._measurements.publisher_count() == 0:
-            raise _Refused(f"measurements: no publisher on {self._measurements.topic!r}: nothing to record")
+        listener = self._listen_as_needed()
+        end = time.monotonic() + MATCH_WAIT_S
+        while listener.publisher_count() == 0:
+            if time.monotonic() > end:
+                raise _Refused(
+                    f"measurements: no publisher on {listener.topic!r} matched within {MATCH_WAIT_S:g} s: nothing to record"
+                )
+            time.sleep(0.01)
         return x0
 
     def _identify(self) -> tuple[bool, str]:
         cfg, settings, mmap = self._config, self._ident, self._mmap
+        if is_multi(cfg):
+            raise _Refused(
+                f"identification fits one input; this model has {n_inputs(cfg)} (model.inputs): identify each "
+                "drive with a single-input parameter file"
+            )
         modes = settings.modes_for(cfg.model)
         if modes > 0 and not np.any(mmap.sees_modes()):
             raise _Refused(
@@ -350,8 +325,13 @@ class IdentifyHandling:
 
     def _wait_readings(self, last: int) -> None:
         """Until a reading stamped at or after command ``last`` was sent arrives (a lagging plant), or time out."""
-        t_last = int(self._sent_log.rows(last, last)[0][0])
         end = time.monotonic() + self._state.timeout_s + READINGS_GRACE_S
+        # the stream goes idle as it takes the closing hold, just before it publishes (and logs) it
+        while self._sent_log.count <= last:
+            if time.monotonic() > end:
+                raise _Refused("the excitation's closing hold was not sent")
+            time.sleep(0.001)
+        t_last = int(self._sent_log.rows(last, last)[0][0])
         while self._readings.first_at_or_after(t_last) >= self._readings.count:
             if time.monotonic() > end:
                 return  # paired_record says what is missing
@@ -438,4 +418,4 @@ class IdentifyHandling:
         self.publish_diagnostics()
 
 
-__all__ = ["IdentifyHandling", "MeasurementListener"]
+__all__ = ["IdentifyHandling"]

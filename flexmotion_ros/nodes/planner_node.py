@@ -5,7 +5,11 @@
 Interfaces (standard types only)
 --------------------------------
 ``~/goal`` (std_msgs/Float64)
-    Absolute target position (m or rad).
+    Absolute target position (m or rad); with several rigid bodies refused
+    with the reason (use ``~/goals``).
+``~/goals`` (std_msgs/Float64MultiArray)
+    One target per rigid body (``model.rigid_bodies``; one value for a
+    single-input model).  Several inputs (``model.inputs``): :mod:`.multi_axis`.
 ``~/joint_trajectory`` (trajectory_msgs/JointTrajectory)
     ``joint_names`` must be ``[joint_name]`` (another name is refused, with
     the closest valid one); the last point's position is the target, its
@@ -24,7 +28,7 @@ Interfaces (standard types only)
 ``~/stop`` (std_srvs/Trigger)
     Time-optimal stop from the predicted moving, vibrating state; the final
     position is free.
-``commands`` (std_msgs/Float64MultiArray, one element)
+``commands`` (std_msgs/Float64MultiArray, one element per input; ``output: trajectory``: see :mod:`.planner_output`)
     The exact zero-order-hold plan at ``rate_hz`` from an absolute-deadline
     thread (:class:`~flexmotion_ros.execution.CommandStream`); one explicit hold sample (0) ends each move;
     ``publish_hold_when_idle`` keeps the hold going while idle.
@@ -105,11 +109,12 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.config import PlannerConfig
+from ..core.errors import ConfigError
+from ..core.multi_input.dispatch import AnyConfig, bounds_text, n_inputs, positions_text
 from ..execution import (
     PLAN_TIME_WINDOW,
     Segment,
@@ -119,7 +124,7 @@ from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
 from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
-from . import messages
+from . import messages, multi_axis
 from .measured_state import StateListener
 from .parameters import (
     PLANNER_NODE_ONLY,
@@ -240,11 +245,12 @@ class PlannerNode(
 
     # ------------------------------------------------------------------ setup
     def _setup(self) -> None:
-        self._config: PlannerConfig = planner_config(self._values())
+        self._config: AnyConfig = planner_config(self._values())
         v = self._values()
-        self._position = float(v["initial_position"])
+        self._position = multi_axis.initial_position(self._config, v["initial_position"])
         self._state = state_settings(v)  # ConfigError names a bad state.* / joint_name / trajectory.* value
-        self._state_joints = self._state.state_joint_names(self._config.model.n_modes)
+        self._state_joints = multi_axis.state_joints(self._state, self._config)
+        self._joint_names = multi_axis.command_joint_names(self._config, v)  # the joints of 'commands', in order
         self._replan_lead_s = float(v["replan_lead_s"])
         self._max_points = int(v["max_trajectory_points"])
         self._frame_id = str(v["frame_id"])
@@ -276,7 +282,7 @@ class PlannerNode(
         self._status = StatusReporter(
             self,
             float(v["diagnostics_period_s"]),
-            self._position,
+            self._position if np.ndim(self._position) == 0 else positions_text(self._position),
             self._status_context,
             tick=self._check_streaming_ready,
         )
@@ -295,6 +301,7 @@ class PlannerNode(
         self._worker = RequestWorker(self._handle, self._not_planned)
         self._wake = self.create_guard_condition(lambda: None, callback_group=requests)
         self.create_subscription(Float64, "~/goal", self._on_goal, GOAL_QOS, callback_group=requests)
+        self.create_subscription(Float64MultiArray, "~/goals", self._on_goals, GOAL_QOS, callback_group=requests)
         self.create_subscription(
             JointTrajectory, "~/joint_trajectory", self._on_joint_trajectory, GOAL_QOS, callback_group=requests
         )
@@ -314,12 +321,16 @@ class PlannerNode(
         self._froze_gc = True
         m = self._config.model
         self.get_logger().info(
-            f"ready: {m.n_modes} mode(s), u_max {self._config.u_max:g}, {rate:g} Hz, method {self._config.method}, "
-            f"joint {self._state.joint_name!r}, "
+            f"ready: {m.n_modes} mode(s), u_max {bounds_text(self._config)}, {rate:g} Hz, method {self._config.method}, "
+            + (
+                f"joint {self._state.joint_name!r}, "
+                if not multi_axis.is_multi(self._config)
+                else f"commands for joints {list(self._joint_names)}, rigid bodies {list(m.rigid_bodies)}, "
+            )
             + (
                 f"start state measured on {self._listener.topic}"
                 if self._listener is not None
-                else f"at {self._position:g} (state.source: assumed)"
+                else f"at {positions_text(self._position)} (state.source: assumed)"
             )
             + (", stream on ROS time (use_sim_time)" if self._ros_time_stream else "")
         )
@@ -364,7 +375,18 @@ class PlannerNode(
         )
 
     def _validate(self, candidate: dict[str, Any]) -> None:
-        check_output(candidate, planner_config(candidate).model)  # e.g. model.c != 0 for a velocity joint
+        new = planner_config(candidate)
+        check_output(candidate, new)  # e.g. model.c != 0 for a velocity joint; trajectory output: one input only
+        old = getattr(self, "_config", None)
+        if old is not None and self._lifecycle in ("inactive", "active"):
+            # the stream's message layout and the measured state's joints are fixed at start-up
+            shape = (multi_axis.is_multi(old), n_inputs(old), getattr(old.model, "rigid_bodies", ()))
+            if (multi_axis.is_multi(new), n_inputs(new), getattr(new.model, "rigid_bodies", ())) != shape:
+                raise ConfigError(
+                    "model.inputs",
+                    "the inputs and rigid bodies are fixed at start-up (the layout of 'commands' and of the measured "
+                    "state): restart the planner with the new parameter file",
+                )
         identification_settings(candidate)
 
     def _apply_parameters(self, params) -> None:
@@ -381,7 +403,7 @@ class PlannerNode(
         self.get_logger().info(f"parameters set ({changed}); the next goal uses them")
 
     @property
-    def config(self) -> PlannerConfig:
+    def config(self) -> AnyConfig:
         """The configuration the next goal is planned with."""
         return self._config
 
@@ -393,11 +415,12 @@ class PlannerNode(
     def _status_context(self) -> dict[str, Any]:
         """The node's own values of the status on /diagnostics (after state, planning, last_error, target)."""
         return {
-            "position_at_rest": self._position,
+            "position_at_rest": self._position if np.ndim(self._position) == 0 else positions_text(self._position),
             "rate_hz": self._config.rate_hz,
             "method": self._config.method,
-            "u_max": self._config.u_max,
+            "u_max": self._config.u_max if np.ndim(self._config.u_max) == 0 else bounds_text(self._config),
             "modes": self._config.model.n_modes,
+            "command_joints": ",".join(self._joint_names),  # the joints of 'commands', in order
             "command_subscribers": self.commands_publisher.get_subscription_count(),
             "streaming_ready": self._command_subscribers > 0,
             "replan_lead_samples": self._lead_samples(),

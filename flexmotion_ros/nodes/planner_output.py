@@ -31,20 +31,47 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from ..core.errors import ConfigError
 from ..core.model.modal_model import ModalModel
+from ..core.multi_input.dispatch import AnyConfig, n_inputs
+from ..execution.command_stream import CommandStream
 from ..execution.output import OutputMode, OutputSettings, OutputStream, forward_hold, output_settings
 from ..execution.trajectory import NS, JointTrajectory
 from . import messages
 from .trajectory_messages import trajectory_msg
 
+#: Parameters that several inputs take at their default only (name, the default).
+SINGLE_INPUT_ONLY = (("output", "stream"), ("command_interface", "effort"))
+
 #: The trajectory topic: reliable, keep last 10 (a joint_trajectory_controller's subscription matches it).
 TRAJECTORY_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 
 
-def check_output(values: dict[str, Any], model) -> OutputSettings:
-    """The output settings for these parameter values (ConfigError names the bad one; one input only)."""
-    if not isinstance(model, ModalModel):  # several inputs (issue 12): not wired here yet
-        raise ConfigError("command_interface", "output and command interfaces support one input (m = 1) for now")
-    return output_settings(values, model)
+def check_output(values: dict[str, Any], config: AnyConfig) -> OutputSettings:
+    """The output settings for these parameter values (ConfigError names the bad one).
+
+    Several inputs (``model.inputs``, issue 12) stream forces on ``commands``
+    only: ``output: trajectory``, a velocity / position ``command_interface``
+    and closed-loop replanning (``feedback.replan_period_s``) are one-input
+    features for now and are refused at configure time.
+    """
+    if isinstance(config.model, ModalModel):
+        return output_settings(values, config.model)
+    m = n_inputs(config)
+    for name, default in SINGLE_INPUT_ONLY:
+        given = values.get(name, default)
+        if given != default:
+            raise ConfigError(
+                name,
+                f"is one-input only for now, got {given!r} with {m} inputs (model.inputs): use {default!r} "
+                "(a force stream on 'commands')",
+            )
+    period = values.get("feedback.replan_period_s", 0.0)
+    if isinstance(period, (int, float)) and period > 0.0:
+        raise ConfigError(
+            "feedback.replan_period_s",
+            f"closed-loop replanning is one-input only for now, got {period} s with {m} inputs (model.inputs): "
+            "set it to 0.0",
+        )
+    return OutputSettings()
 
 
 class OutputGlue:
@@ -52,16 +79,28 @@ class OutputGlue:
 
     def _output_publisher(self, values: dict[str, Any], command_qos: QoSProfile):
         """Validate the output and create its lifecycle publisher (kept as ``commands_publisher``)."""
-        self._output: OutputSettings = check_output(values, self._config.model)
+        self._output: OutputSettings = check_output(values, self._config)
         if self._output.mode is OutputMode.STREAM:
             return self.create_lifecycle_publisher(Float64MultiArray, "commands", command_qos)
         return self.create_lifecycle_publisher(JointTrajectoryMsg, self._output.topic, TRAJECTORY_QOS)
 
-    def _output_stream(self, rate: float, hold_when_idle: bool, **kwargs: Any) -> OutputStream:
+    def _output_stream(self, rate: float, hold_when_idle: bool, **kwargs: Any) -> CommandStream:
         """The command stream of the configured output (``kwargs``: as for :class:`CommandStream`)."""
+        m = n_inputs(self._config)  # values per sample: one per input (fixed at start-up)
+        if m > 1:  # several inputs: forces on 'commands', m values per sample (check_output refused the rest)
+            msg = messages.command(0.0, m)
+            hold = [0.0] * m
+
+            def publish_row(value) -> None:
+                self._record_sent(value)  # the commands actually sent, for identification (planner_identify.py)
+                msg.data = hold if np.ndim(value) == 0 else value.tolist()  # a row, or the hold (HOLD: 0 on all)
+                self.commands_publisher.publish(msg)
+
+            return CommandStream(rate, publish_row, hold_when_idle, **kwargs)
         msg = messages.command(0.0)
 
         def publish(value: float) -> None:
+            # the setpoint of the interface; identification records the model input (on_publish below)
             msg.data[0] = value
             self.commands_publisher.publish(msg)
 
@@ -78,7 +117,7 @@ class OutputGlue:
             publish_trajectory=publish_trajectory,
             ros_ns=self._ros_ns_of,
             on_sample=getattr(self, "_feedback_sample", None),
-            on_publish=getattr(self, "_record_sent", None),  # the commands sent, for identification
+            on_publish=getattr(self, "_record_sent", None),  # the model inputs sent, for identification
             on_start_now=getattr(self, "_feedback_move_start", None),
             **kwargs,
         )
@@ -121,4 +160,4 @@ class OutputGlue:
         return out
 
 
-__all__ = ["TRAJECTORY_QOS", "OutputGlue", "check_output"]
+__all__ = ["SINGLE_INPUT_ONLY", "TRAJECTORY_QOS", "OutputGlue", "check_output"]

@@ -20,11 +20,11 @@ import numpy as np
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from ..core.config import PlannerConfig
 from ..core.errors import SolverError
-from ..core.model.boundary import state_to_rest
+from ..core.multi_input.dispatch import AnyConfig, body_positions, move_problem, positions_text
 from ..execution import Segment, plan_summary
 from ..execution.requests import Request, RequestKind
+from ..execution.splice import READY_STOP_LEADS
 from .planner_goals import MoveRecord, Outcome
 
 #: ``~/stop`` answers within this (s): a stop still being planned then is answered with where it will start.
@@ -59,7 +59,7 @@ class StopHandling:
         where = {"request_sample": k_next, "lead_samples": self._lead_samples(), "moving": bool(timeline)}
         if self._lifecycle == "active":
             self._worker.cancel(f"superseded by a stop ({source}) before it started")
-        return self._ready_stop(source), where
+        return self._ready_stop(source, k_next + READY_STOP_LEADS * where["lead_samples"]), where
 
     def _plan_stop_async(self, source: str) -> Future:
         """Plan the stop in a thread of its own (one at a time: a second stop shares the first one's result).
@@ -115,18 +115,30 @@ class StopHandling:
             response.message = out.reason or "already at rest"
         else:
             k_req, lead = where["request_sample"], where["lead_samples"]
+            if "lead_samples" in out.info:  # planned now: its look-ahead counted from the request
+                lead = out.info["planned_at_sample"] - k_req + out.info["lead_samples"]
             response.message = (
                 f"stopping: {out.segment.samples} samples ({out.segment.samples * self.stream.dt:.6g} s), "
-                f"at rest at {out.segment.states[-1, 0]:.9g}; from sample {out.segment.start}, "
+                f"at rest at {positions_text(body_positions(self._config.model, out.segment.states[-1]))}; "
+                f"from sample {out.segment.start}, "
                 f"{out.segment.start - k_req} samples after the request (look-ahead {lead})"
-                + ("; a ready stop" if "stop_lead_samples" in out.info else "")
+                + (
+                    f"; a ready stop (taken within {READY_STOP_LEADS} look-aheads)"
+                    if "stop_lead_samples" in out.info
+                    else ""
+                )
+                + (
+                    f"; planned {out.info['plan_attempts']} times (the look-ahead was overrun or the timeline changed)"
+                    if out.info.get("plan_attempts", 1) > 1
+                    else ""
+                )
             )
         return response
 
-    def _plan_stop(self, x0: np.ndarray, config: PlannerConfig) -> Segment:
+    def _plan_stop(self, x0: np.ndarray, config: AnyConfig) -> Segment:
         """The stop from ``x0`` (final position free), planned and verified like every plan (preparer thread)."""
         t0 = time.perf_counter()
-        problem = state_to_rest(config.model, config.u_max, x0, None)
+        problem = move_problem(config, x0, None)
         result = self._planner_for(problem)(config, problem, config.rate_hz)
         sampled = result.sampled
         if sampled is None:
@@ -140,8 +152,8 @@ class StopHandling:
         rec = timeline[-1].info if timeline else None
         return isinstance(rec, MoveRecord) and rec.target is not None
 
-    def _ready_stop(self, source: str) -> Outcome | None:
-        """Splice a ready stop (a few samples ahead); None if none is usable (then plan it)."""
+    def _ready_stop(self, source: str, latest: int) -> Outcome | None:
+        """Splice a ready stop starting by sample ``latest``; None if none is usable (then plan it)."""
         stops = self._stops
         if stops is None or self._lifecycle != "active":
             return None
@@ -151,7 +163,8 @@ class StopHandling:
             if not timeline:
                 return None
             # none ready but one being planned: worth waiting for (it starts sooner than a plan made now)
-            ready = stops.take(wait_s=min(STOP_READY_WAIT_S, 2.0 * max(stops.plan_times, default=0.0)))
+            # not taken if it starts much later than a stop planned now would (READY_STOP_LEADS)
+            ready = stops.take(wait_s=min(STOP_READY_WAIT_S, 2.0 * max(stops.plan_times, default=0.0)), latest=latest)
             if ready is None:
                 return None
             seg = ready.segment

@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from ..core.multi_input.dispatch import positions_text
 from ..execution import Segment
 from ..execution.splice import StopPreparer
 from .planner_goals import MoveRecord
@@ -95,7 +96,7 @@ class StreamGlue:
         def report() -> None:
             times, late = self.stream.recent_timing(n, before=self.stream.samples_sent - sent)
             self._status.finished(times, late)
-            self.get_logger().info(f"move finished, at rest at {position:.9g}")
+            self.get_logger().info(f"move finished, at rest at {positions_text(position)}")
             self.publish_diagnostics()
 
         self._status.defer(report)

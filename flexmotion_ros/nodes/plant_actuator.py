@@ -18,7 +18,9 @@ All of it runs through :class:`~flexmotion_ros.execution.actuator.Actuator`
 (exact, ROS-free); the plain effort plant without a disturbance keeps the
 node's own integration.  Coulomb friction is simulated on that plain path
 only.  Real time with ``plant.input: commands`` stays effort-only and
-undisturbed (use lockstep, or trajectories, for the rest).
+undisturbed (use lockstep, or trajectories, for the rest).  Several inputs
+(``model.inputs``) take the plain path only: another interface, input or a
+disturbance is refused at start-up, naming the parameter.
 """
 
 from __future__ import annotations
@@ -55,6 +57,18 @@ class ActuatorGlue:
         iface = command_interface(values.get("command_interface", "effort"))
         servo = servo_settings(values)
         dist = disturbance_settings(values, iface)
+        if cfg.inputs > 1:  # several inputs (issue 12): forces on 'commands' only, for now
+            for name, given, default in (
+                ("command_interface", iface.value, "effort"),
+                ("plant.input", source, "commands"),
+                ("plant.disturbance.type", "none" if not dist.active else dist.kind.value, "none"),
+            ):
+                if given != default:
+                    raise ConfigError(
+                        name,
+                        f"is one-input only for now, got {given!r} with {cfg.inputs} inputs (model.inputs): "
+                        f"use {default!r}",
+                    )
         self._plays_trajectories = source == "trajectory"
         self._actuator: Actuator | None = None
         self._playback: TrajectoryPlayback | None = None

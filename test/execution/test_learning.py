@@ -18,12 +18,11 @@ from flexmotion_ros.core.model.measurement import MeasurementMap, builder_map
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.execution.learning import (
     IdentificationSettings,
-    SignalLog,
     fit_record,
     identification_settings,
     model_update,
-    paired_record,
 )
+from flexmotion_ros.execution.records import SignalLog, paired_record
 
 DT = 0.005
 DT_NS = 5_000_000

@@ -12,6 +12,7 @@ import time
 import numpy as np
 from rcl_interfaces.srv import GetParameters
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -19,6 +20,7 @@ from flexmotion_ros.core.model.builders import crane_acceleration
 from flexmotion_ros.core.model.measurement import builder_map
 from flexmotion_ros.core.simulation.exact import modal_amplitudes
 from flexmotion_ros.nodes import messages
+from flexmotion_ros.nodes.plant_node import PLANT_QOS
 
 from .conftest import wait_for
 
@@ -47,8 +49,10 @@ def setup(ros, **planner_params):
     planner = ros.planner(**FILE, **planner_params)
     plant = ros.plant(**FILE, **TRUE)
     ros.connected(planner)
-    wait_for(lambda: planner._measurements.publisher_count() >= 1, 10.0, "the measurements publisher")
-    wait_for(lambda: plant._measure.subscription_count() >= 1, 10.0, "the measurements subscription")
+    assert (planner._measurements is not None) == planner._ident.learn_from_moves  # subscribed only when needed
+    if planner._measurements is not None:
+        wait_for(lambda: planner._measurements.publisher_count() >= 1, 10.0, "the measurements publisher")
+        wait_for(lambda: plant._measure.subscription_count() >= 1, 10.0, "the measurements subscription")
     return planner, plant
 
 
@@ -90,13 +94,16 @@ def test_identify_then_the_next_move_leaves_no_swing(ros):
     )
     before = move(ros, planner, plant, 1.0)
     assert before > 0.10, before  # tens of % of the move: the file's model is 12 % off
+    identify = ros.probe.create_client(Trigger, "flexmotion_planner/identify")
+    resp = ros.call(identify, Trigger.Request(), 10.0)  # swinging: the fit would assume rest
+    assert not resp.success and resp.message.startswith("not at rest: velocity "), resp.message
     plant = replace_plant(ros, plant, float(plant.state()[0]))
-    wait_for(lambda: plant.applied == 0 and planner._measurements.publisher_count() >= 1, 10.0, "the new plant")
+    wait_for(lambda: plant.applied == 0, 10.0, "the new plant")
     wait_for(lambda: planner.commands_publisher.get_subscription_count() >= 2, 10.0, "the new plant's commands")
     store, joints = planner._listener.store, planner._state_joints
     wait_for(lambda: modal_amplitudes(BUILT.model, store.fresh(joints, 1.0, "joint_states"))[0] == 0.0, 5.0, "rest")
     t0 = time.monotonic()
-    resp = ros.call(ros.probe.create_client(Trigger, "flexmotion_planner/identify"), Trigger.Request(), 60.0)
+    resp = ros.call(identify, Trigger.Request(), 60.0)
     took = time.monotonic() - t0
     assert resp.success, resp.message
     assert resp.message.startswith("identified: mode 0: omega ") and "adopted for the next goal" in resp.message
@@ -153,4 +160,42 @@ def test_identify_refuses_with_the_reason(ros):
     client = ros.probe.create_client(Trigger, "flexmotion_planner/identify")
     resp = ros.call(client, Trigger.Request(), 10.0)
     assert not resp.success and "no measured state" in resp.message, resp.message
+    # a machine at rest on joint_states, but nothing publishes measurements
+    pub = ros.probe.create_publisher(JointState, "joint_states", PLANT_QOS)
+    wait_for(lambda: pub.get_subscription_count() >= 2, 10.0, "the planner's state subscription")
+    pub.publish(messages.joint_state(["rigid_body", "mode_1"], np.zeros(4), 0.0, ros.probe.get_clock().now().to_msg()))
+    resp = ros.call(client, Trigger.Request(), 10.0)
+    assert not resp.success and resp.message.startswith("measurements: no publisher on "), resp.message
+    assert planner._measurements is None  # unsubscribed again
     assert not planner.installed and not ros.probe.commands  # nothing moved
+    wait_for(
+        lambda: "refused: measurements" in (ros.probe.planner_status() or (0, "", {}))[2].get("identification", ""),
+        5.0,
+        "the refusal on /diagnostics",
+    )
+
+
+def test_a_stop_cuts_the_excitation_off_with_the_hold_and_nothing_is_adopted(ros):
+    planner, plant = setup(ros, **{"identification.adopt": True, "identification.duration_s": 2.0})
+    future = ros.probe.create_client(Trigger, "flexmotion_planner/identify").call_async(Trigger.Request())
+    wait_for(lambda: plant.applied > 100, 10.0, "the excitation under way")
+    stop = ros.call(ros.probe.stop, Trigger.Request())
+    assert stop.success, stop.message
+    wait_for(future.done, 20.0, "the answer of ~/identify")
+    resp = future.result()
+    assert not resp.success and resp.message.startswith("cut off by a stop or a goal"), resp.message
+    wait_for(lambda: planner.stream.idle, 10.0, "the stop's end")
+    time.sleep(0.2)
+    assert ros.probe.command_values()[-1] == 0.0  # the hold
+    assert planner.get_parameter("model.omega").value[0] == 10.0  # nothing adopted
+
+
+def test_a_fit_the_data_cannot_support_is_refused_with_the_cores_reason(ros):
+    """Two modes asked of a one-mode machine: the core's one-line refusal, nothing adopted."""
+    planner, plant = setup(
+        ros, **{"identification.adopt": True, "identification.modes": 2, "identification.duration_s": 1.5}
+    )
+    resp = ros.call(ros.probe.create_client(Trigger, "flexmotion_planner/identify"), Trigger.Request(), 30.0)
+    assert not resp.success and resp.message.startswith("data.input: does not show mode 1"), resp.message
+    assert "\n" not in resp.message
+    assert planner.get_parameter("model.omega").value[0] == 10.0

@@ -162,29 +162,33 @@ def test_a_stop_takes_effect_within_a_few_samples_from_a_ready_stop(ros):
     # old main: ~/stop planned from the state a full look-ahead ahead (>= 1.5 x the slowest plan + 20 ms:
     # >= 10 samples at 200 Hz, 273 ms measured under load); now a ready stop starts a few samples after the request.
     # A ready stop is a few samples ahead of the stream: on a loaded machine the stream may pass it before
-    # the request is served (then the stop is planned on demand); up to three moves are tried for one.
+    # the request is served (then the stop is planned on demand); up to five moves are tried for one (a ready stop further than READY_STOP_LEADS look-aheads is not taken).
     planner = ros.planner(**ASSUMED)
     ros.connected(planner, subscribers=1)
     probe = ros.probe
     stops = planner.stop_preparer
-    for attempt in range(3):
+    for attempt in range(5):
         target = 1.0 if attempt % 2 == 0 else 0.0
         resp = ros.call(probe.move, goal_request(target))
         assert not resp.plan.header.frame_id.startswith("error")
         move = planner.installed[-1]
-        wait_for(lambda: len(stops.ready()) >= 1, 10.0, "a ready stop")
+        # the first stops a fresh process plans can be slow: the move may end before one is ready
+        wait_for(lambda move=move: stops.ready() or planner.stream.snapshot()[0] > move.end, 10.0, "a ready stop")
+        if not stops.ready():
+            ans, ready = Trigger.Response(message="the move ended before a stop was ready"), False
+            continue
         k_req = planner.stream.snapshot()[0]
         ans = ros.call(probe.stop, Trigger.Request())
         assert ans.success, ans.message
         wait_for(lambda move=move: planner.installed[-1] is not move, 10.0, "the stop installed")
         stop = planner.installed[-1]
         assert stop.info.target is None
-        ready = ans.message.endswith("; a ready stop")
+        ready = "; a ready stop" in ans.message
         wait_for(lambda stop=stop: probe.command_values().size >= stop.end + 1, 10.0, "the stop and its hold")
         time.sleep(0.1)
         if ready:
             break
-    assert ready, f"no ready stop was used in 3 moves: {ans.message}"
+    assert ready, f"no ready stop was used in 5 moves: {ans.message}"
     latency = stop.start - k_req  # samples from the request to the stop's first command
     # the old main's look-ahead for the same planning time, its shortest possible stop latency
     old_lead = lead_samples(stops.plan_times, 0.05, 200.0)
