@@ -404,7 +404,7 @@ def _actuator_specs() -> list[Spec]:
             "feedback.replan_period_s",
             0.0,
             "closed-loop replanning: during a move, every this many seconds, replan from the state a Kalman filter "
-            "estimates from the commands sent and the measured joint_states (spliced ahead of the planning time; "
+            "estimates from the commands sent and the plant's measurements topic (spliced ahead of the planning time; "
             "certified plans only; a failed replan leaves the plan running); 0: off (open loop). Fixed at start-up.",
             read_only=True,
             fp_range=(0.0, 3600.0),
