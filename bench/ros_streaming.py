@@ -28,6 +28,7 @@ under ``SCHED_FIFO`` (``stream_priority``), where the OS permits it.
     python bench/ros_streaming.py
     python bench/ros_streaming.py --rate 1000 --moves 5 --priorities 0 50
     python bench/ros_streaming.py --moves 2 --stops 5 --priorities 0      # brief
+    python bench/ros_streaming.py --accuracy --moves 4 --burners 2       # trajectory vs stream (bench/ros_accuracy.py)
 
 OpenBLAS threads are set to 1 before numpy loads (tiny matrices: threading only costs).
 """
@@ -65,6 +66,13 @@ def _args() -> argparse.Namespace:
         "--priorities", type=int, nargs="+", default=[0, 50], help="stream_priority values to run (0: normal)"
     )
     p.add_argument("-p", dest="extra", action="append", default=[], help="extra planner parameter NAME:=VALUE")
+    p.add_argument(
+        "--accuracy",
+        action="store_true",
+        help="instead: trajectory output vs the stream, real-time plant, beside CPU burners (bench/ros_accuracy.py)",
+    )
+    p.add_argument("--burners", type=int, default=2, help="--accuracy: CPU-burning processes beside the nodes")
+    p.add_argument("--start-delay", type=float, default=0.2, help="--accuracy: trajectory.start_delay_s (s)")
     return p.parse_args()
 
 
@@ -255,6 +263,12 @@ def run_config(args, priority: int) -> dict:
 
 def main() -> None:
     args = _args()
+    if args.accuracy:  # trajectory vs stream: what reaches the machine (issue 14)
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from ros_accuracy import accuracy  # noqa: PLC0415 -- the sibling script, only for this mode
+
+        accuracy(args)
+        return
     import rclpy
 
     rclpy.init(args=[])

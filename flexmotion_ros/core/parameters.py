@@ -274,6 +274,30 @@ PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         "a trajectory goal arriving before T*",
         choices=("refuse", "optimum"),
     ),
+    # issue 14: outputs, command interfaces, closed-loop replanning (command_interface and
+    # trajectory.topic are read by the plant too: one file serves both)
+    _p("output", S, "'stream' or 'trajectory'", "what the planner publishes", choices=("stream", "trajectory")),
+    _p(
+        "command_interface",
+        S,
+        "'effort', 'velocity' or 'position'",
+        "command interface of the actuated joint",
+        choices=("effort", "velocity", "position"),
+    ),
+    _p("trajectory.topic", S, "a topic name", "trajectory_msgs/JointTrajectory topic of output: trajectory"),
+    _p(
+        "trajectory.interpolation",
+        S,
+        "'none' or 'splines'",
+        "the receiver's interpolation_method",
+        choices=("none", "splines"),
+    ),
+    _p("trajectory.receiver_update_rate", D, "Hz, 0 or >= 1", "the receiver's update_rate (look-ahead); 0: none"),
+    _p("trajectory.start_delay_s", D, "s, in [0, 10]", "a move from idle starts this far ahead (transport margin)"),
+    _p("feedback.replan_period_s", D, "s, >= 0; 0: off", "period of closed-loop replanning during a move"),
+    _p("feedback.measurement_std", D, "> 0, the measurements' units", "measurement noise assumed by the filter"),
+    _p("feedback.input_noise_std", D, ">= 0, the input's unit", "input disturbance assumed by the filter"),
+    _p("feedback.min_deviation", D, "in (0, 1), a fraction of the move", "replan only above this deviation"),
     # identification on the machine (nodes/planner_identify.py, execution/learning.py)
     _p("identification.band", DA, "[lo, hi] rad/s, 0 < lo < hi; empty: around the model's modes", "excitation band"),
     _p("identification.modes", I, "integer in [-1, 8]; -1: the model's", "modes to identify"),
@@ -320,6 +344,17 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
         alternatives=(DA,),
     ),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
+    _p("plant.input", S, "'commands' or 'trajectory'", "what drives the plant", choices=("commands", "trajectory")),
+    _p("plant.servo_bandwidth", D, "rad/s, >= 0; 0: ideal", "first-order servo of a velocity / position joint"),
+    _p(
+        "plant.disturbance.type",
+        S,
+        "'none', 'impulse' or 'step'",
+        "a force disturbance on the rigid body's input",
+        choices=("none", "impulse", "step"),
+    ),
+    _p("plant.disturbance.time_s", D, "s, >= 0", "when it acts, from the first non-zero force (the first move)"),
+    _p("plant.disturbance.value", D, "N s (impulse) or N (step)", "its size"),
     _p(
         "plant.noise_std",
         D,

@@ -210,8 +210,10 @@ def held_pieces(
     if settings.interpolation is not Interpolation.NONE:
         raise ValueError("held_pieces needs interpolation_method none")
     times = trajectory.point_times_ns() - settings.lookahead_ns
-    boundaries = {int(t) for t in times}
-    cuts = [int(t) for t in times if t_from_ns < t < t_to_ns]
+    # O(log K) per call (a plant calls this at every tick of a long trajectory)
+    first_cut = int(np.searchsorted(times, t_from_ns, side="right"))
+    last_cut = int(np.searchsorted(times, t_to_ns, side="left"))
+    cuts = [int(t) for t in times[first_cut:last_cut]]
     bounds = [t_from_ns, *cuts, t_to_ns]
     out = []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
@@ -220,9 +222,10 @@ def held_pieces(
         pt = sample(trajectory, lo + settings.lookahead_ns, Interpolation.NONE, before)
         if pt is None:
             raise ValueError("nothing to play before the trajectory's first point: give the point before it")
-        later = times[times > lo]
-        due = int(later[0]) if later.size else None
-        out.append(HeldPiece(start_ns=lo, end_ns=hi, due_ns=due, point=pt, begins=lo in boundaries))
+        j = int(np.searchsorted(times, lo, side="right"))  # the first point time after lo
+        due = int(times[j]) if j < times.size else None
+        begins = j > 0 and int(times[j - 1]) == lo
+        out.append(HeldPiece(start_ns=lo, end_ns=hi, due_ns=due, point=pt, begins=begins))
     return out
 
 

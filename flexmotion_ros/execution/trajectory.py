@@ -173,8 +173,13 @@ class JointTrajectory:
     points: tuple[TrajectoryPoint, ...]
 
     def point_times_ns(self) -> np.ndarray:
-        """Absolute time (ns) of every point: ``stamp + time_from_start``."""
-        return np.array([self.stamp_ns + p.time_from_start_ns for p in self.points], dtype=np.int64)
+        """Absolute time (ns) of every point: ``stamp + time_from_start`` (computed once, read-only)."""
+        times = self.__dict__.get("_times_ns")
+        if times is None:  # cached: a receiver samples a long trajectory at every tick
+            times = np.array([self.stamp_ns + p.time_from_start_ns for p in self.points], dtype=np.int64)
+            times.setflags(write=False)
+            object.__setattr__(self, "_times_ns", times)
+        return times
 
 
 @dataclass(frozen=True, kw_only=True)

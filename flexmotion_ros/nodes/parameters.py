@@ -334,6 +334,105 @@ def _goal_specs() -> list[Spec]:
             "take the 'optimum' (arrive as fast as possible). Fixed at start-up.",
             read_only=True,
         ),
+        *_actuator_specs(),
+    ]
+
+
+def command_interface_spec() -> Spec:
+    """``command_interface``, declared by both nodes (one file serves the planner and the plant)."""
+    return Spec(
+        "command_interface",
+        "effort",
+        "what the actuated joint is commanded in: 'effort' (the force, u_max in N), 'velocity' or 'position' "
+        "(a servo tracks the reference the planner sends, integrated exactly from the plan; the model's input "
+        "is then the joint's acceleration, u_max in m/s^2, model.c = 0.0: build it with "
+        "'flexmotion model crane --input acceleration'). Fixed at start-up.",
+        read_only=True,
+    )
+
+
+def trajectory_topic_spec() -> Spec:
+    """``trajectory.topic``, declared by both nodes."""
+    return Spec(
+        "trajectory.topic",
+        "joint_trajectory",
+        "trajectory_msgs/JointTrajectory topic: the planner publishes on it with output: trajectory (e.g. "
+        "/<controller>/joint_trajectory of a joint_trajectory_controller), the plant reads it with plant.input: "
+        "trajectory. Fixed at start-up.",
+        read_only=True,
+    )
+
+
+def _actuator_specs() -> list[Spec]:
+    """The planner's output, command interface and closed-loop replanning (issue 14; fixed at start-up)."""
+    return [
+        Spec(
+            "output",
+            "stream",
+            "'stream': one command per sample on 'commands'; 'trajectory': each plan as one "
+            "trajectory_msgs/JointTrajectory on trajectory.topic, played by the receiver's clock. Fixed at start-up.",
+            read_only=True,
+        ),
+        command_interface_spec(),
+        trajectory_topic_spec(),
+        Spec(
+            "trajectory.interpolation",
+            "none",
+            "the receiver's interpolation_method: 'none' (the points are its zero-order hold; required for effort) "
+            "or 'splines' (velocity / position: the cubic through (p, v) is the exact reference). Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "trajectory.receiver_update_rate",
+            0.0,
+            "update_rate (Hz) of a Jazzy joint_trajectory_controller receiving output: trajectory (it commands the "
+            "point due one period ahead: the points are shifted by it); 0: no look-ahead (the plant node, Humble). "
+            "Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e6),
+        ),
+        Spec(
+            "trajectory.start_delay_s",
+            0.2,
+            "output: trajectory: a move from idle starts this long (s) after the request's plan is ready, and a "
+            "preemption is spliced at least this far ahead: the time a trajectory has to reach the receiver, in "
+            "[0, 10] (at least 2 samples). Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 10.0),
+        ),
+        Spec(
+            "feedback.replan_period_s",
+            0.0,
+            "closed-loop replanning: during a move, every this many seconds, replan from the state a Kalman filter "
+            "estimates from the commands sent and the plant's measurements topic (spliced ahead of the planning time; "
+            "certified plans only; a failed replan leaves the plan running); 0: off (open loop). Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 3600.0),
+        ),
+        Spec(
+            "feedback.measurement_std",
+            1e-6,
+            "standard deviation the filter assumes for each measured coordinate (their units), > 0. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e12),
+        ),
+        Spec(
+            "feedback.min_deviation",
+            1e-6,
+            "replan only when the estimated state deviates from the plan by more than this fraction of the move "
+            "(position, velocity over the rest of the plan, every mode's amplitude), in (0, 1): the residual the "
+            "closed loop settles for. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1.0),
+        ),
+        Spec(
+            "feedback.input_noise_std",
+            0.0,
+            "standard deviation of the unknown input disturbance the filter assumes per sample (the input's unit, "
+            "N), >= 0. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e12),
+        ),
     ]
 
 
@@ -448,6 +547,16 @@ PLANNER_NODE_ONLY = frozenset(
         "state.mode_joint_names",
         "state.timeout_s",
         "trajectory.early_arrival",
+        "output",
+        "command_interface",
+        "trajectory.topic",
+        "trajectory.interpolation",
+        "trajectory.receiver_update_rate",
+        "trajectory.start_delay_s",
+        "feedback.replan_period_s",
+        "feedback.measurement_std",
+        "feedback.input_noise_std",
+        "feedback.min_deviation",
     }
 )
 
@@ -521,6 +630,52 @@ def plant_specs() -> list[Spec]:
             "Fixed at start-up.",
             read_only=True,
             fp_range=(0.0, 3600.0),
+        ),
+        Spec(
+            "plant.input",
+            "commands",
+            "what drives the plant: 'commands' (one value per sample, lockstep or real time) or 'trajectory' "
+            "(joint trajectories on trajectory.topic, played by the plant's own clock with the "
+            "joint_trajectory_controller's rule, interpolation none, integrated exactly; lockstep: each one at "
+            "once, a replacement rewinds the plant to its first point). Fixed at start-up.",
+            read_only=True,
+        ),
+        command_interface_spec(),
+        trajectory_topic_spec(),
+        Spec(
+            "joint_name",
+            "rigid_body",
+            "the joint a received trajectory must name. Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "plant.servo_bandwidth",
+            0.0,
+            "velocity / position joints: bandwidth (rad/s) of a first-order servo tracking the reference; 0: ideal "
+            "tracking. Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e12),
+        ),
+        Spec(
+            "plant.disturbance.type",
+            "none",
+            "a force on the rigid body's input channel (effort joints): 'none', 'impulse' (plant.disturbance.value "
+            "N s at plant.disturbance.time_s) or 'step' (value N from time_s on); time from the first non-zero "
+            "force (the first move). Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "plant.disturbance.time_s",
+            0.0,
+            "when the disturbance acts (s, >= 0), from the first non-zero force (the first move). Fixed at start-up.",
+            read_only=True,
+            fp_range=(0.0, 1e9),
+        ),
+        Spec(
+            "plant.disturbance.value",
+            0.0,
+            "the disturbance: impulse (N s) or step (N). Fixed at start-up.",
+            read_only=True,
         ),
         *measurement_specs(),
         Spec(

@@ -135,6 +135,7 @@ class LifecycleTransitions:
         worker = getattr(self, "_worker", None)
         if worker is not None:
             worker.stop("the planner was cleaned up")
+        self._feedback_close()
         if self._stops is not None:
             self._stops.stop()
             self._stops = None

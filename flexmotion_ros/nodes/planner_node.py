@@ -28,7 +28,7 @@ Interfaces (standard types only)
 ``~/stop`` (std_srvs/Trigger)
     Time-optimal stop from the predicted moving, vibrating state; the final
     position is free.
-``commands`` (std_msgs/Float64MultiArray, one element)
+``commands`` (std_msgs/Float64MultiArray, one element per input; ``output: trajectory``: see :mod:`.planner_output`)
     The exact zero-order-hold plan at ``rate_hz`` from an absolute-deadline
     thread (:class:`~flexmotion_ros.execution.CommandStream`); one explicit hold sample (0) ends each move;
     ``publish_hold_when_idle`` keeps the hold going while idle.
@@ -135,9 +135,11 @@ from .parameters import (
     planner_specs,
     validating_callback,
 )
+from .planner_feedback import FeedbackGlue
 from .planner_goals import GoalHandling
 from .planner_identify import IdentifyHandling
 from .planner_lifecycle import LifecycleTransitions
+from .planner_output import OutputGlue, check_output
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .planner_stops import StopHandling
 from .planner_stream import StreamGlue
@@ -161,7 +163,16 @@ LATCHED_QOS = QoSProfile(
 )
 
 
-class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, LifecycleTransitions, LifecycleNode):
+class PlannerNode(
+    OutputGlue,
+    FeedbackGlue,
+    GoalHandling,
+    StopHandling,
+    IdentifyHandling,
+    StreamGlue,
+    LifecycleTransitions,
+    LifecycleNode,
+):
     """The planner, a managed (lifecycle) node; ``Node`` keyword arguments (``context``, ``parameter_overrides``, ``cli_args``) pass through.
 
     Parameters
@@ -264,7 +275,8 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
         self.installed: deque[Segment] = deque(maxlen=INSTALLED_KEPT)
 
         # a lifecycle publisher: nothing goes out unless active (the hold is sent before deactivating it)
-        self.commands_publisher = self.create_lifecycle_publisher(Float64MultiArray, "commands", COMMAND_QOS)
+        # 'commands' (output: stream) or the trajectory topic (output: trajectory), see planner_output
+        self.commands_publisher = self._output_publisher(v, COMMAND_QOS)
         self._trajectory_pub = self.create_publisher(JointTrajectory, "~/planned_trajectory", LATCHED_QOS)
         # /diagnostics from its own thread (started last), not an executor timer
         self._status = StatusReporter(
@@ -298,6 +310,7 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
         self.create_service(Trigger, "~/stop", self._on_stop, callback_group=requests)
 
         self._make_stream(v, rate)
+        self._feedback_setup(v)  # closed-loop replanning (planner_feedback), off unless feedback.replan_period_s
         self._setup_identification(v)  # ~/identify, measurements, learning (planner_identify.py)
         self._worker.start()
         # A full garbage collection over everything imported (rclpy, scipy, ...) takes
@@ -331,6 +344,7 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
         worker = getattr(self, "_worker", None)
         if worker is not None:
             worker.stop()
+        self._feedback_close()
         status = getattr(self, "_status", None)
         if status is not None:
             status.stop()
@@ -362,6 +376,7 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
 
     def _validate(self, candidate: dict[str, Any]) -> None:
         new = planner_config(candidate)
+        check_output(candidate, new)  # e.g. model.c != 0 for a velocity joint; trajectory output: one input only
         old = getattr(self, "_config", None)
         if old is not None and self._lifecycle in ("inactive", "active"):
             # the stream's message layout and the measured state's joints are fixed at start-up
@@ -412,6 +427,8 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
             "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
+            **self._output_status(),
+            **self._feedback_status(),
             **self._identification_values(),
         }
 
@@ -425,7 +442,8 @@ class PlannerNode(GoalHandling, StopHandling, IdentifyHandling, StreamGlue, Life
         n = self.commands_publisher.get_subscription_count()
         before, self._command_subscribers = self._command_subscribers, n
         if n > 0 and before == 0:
-            self.get_logger().info(f"streaming ready: 'commands' matched by {n} subscriber(s) (writer side)")
+            topic = self.commands_publisher.topic_name
+            self.get_logger().info(f"streaming ready: '{topic}' matched by {n} subscriber(s) (writer side)")
             self.publish_diagnostics()
         elif n == 0 and before > 0:
             self.get_logger().warning("'commands' lost its last subscriber: goals are refused until one matches")

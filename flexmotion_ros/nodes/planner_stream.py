@@ -11,12 +11,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-
-from ..core.multi_input.dispatch import n_inputs, positions_text
-from ..execution import CommandStream, Segment
+from ..core.multi_input.dispatch import positions_text
+from ..execution import Segment
 from ..execution.splice import StopPreparer
-from . import messages
 from .planner_goals import MoveRecord
 
 #: Under ``use_sim_time``, the stream's sleep polls the ROS clock this often (wall s).
@@ -28,24 +25,12 @@ class StreamGlue:
 
     def _make_stream(self, v: dict[str, Any], rate: float) -> None:
         """The command stream on ``commands`` (stopped until activate) and the ready-stop preparer."""
-        m = n_inputs(self._config)  # values per sample: one per input (fixed at start-up)
-        msg = messages.command(0.0, m)
-        hold = [0.0] * m
-
-        def publish(value) -> None:
-            self._record_sent(value)  # the commands actually sent, for identification (planner_identify.py)
-            if m == 1:
-                msg.data[0] = value
-            else:  # a row of m values, or the hold (HOLD: zero on every input)
-                msg.data = hold if np.ndim(value) == 0 else value.tolist()
-            self.commands_publisher.publish(msg)
-
         # use_sim_time: the node's ROS clock (it follows /clock); else the monotonic wall clock, as always
         self._ros_time_stream = bool(self.get_parameter("use_sim_time").value)
         clock_pair = self._ros_clock_pair() if self._ros_time_stream else {}
-        self.stream = CommandStream(
+        # a CommandStream publishing the configured output (planner_output: stream or trajectory, the interface)
+        self.stream = self._output_stream(
             rate,
-            publish,
             bool(v["publish_hold_when_idle"]),
             on_start=self._on_segment_start,
             on_finish=self._on_move_finished,

@@ -76,6 +76,7 @@ from .parameters import (
     plant_specs,
     validating_callback,
 )
+from .plant_actuator import ActuatorGlue
 from .plant_measurements import MeasurementPublisher, stamp_from_ns
 from .runner import run
 
@@ -95,7 +96,7 @@ _CACHE_LIMIT = 2048
 SETTLE_US = 10_000_000
 
 
-class PlantNode(Node):
+class PlantNode(ActuatorGlue, Node):
     """The simulated plant; ``Node`` keyword arguments pass through.
 
     Raises
@@ -139,15 +140,21 @@ class PlantNode(Node):
         self._last_command_at: int | None = None
         self._timeout_reported_for = -math.inf  # the cut-off (us) last counted as a timeout
         self.joint_names = list(rigid_body_names(cfg.model)) + list(mode_names(cfg.model))
+        self._actuator_setup(self._values())  # command interface, servo, disturbance, input (plant_actuator)
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
         self._measure = MeasurementPublisher(self, cfg)  # 'measurements': the sensors (plant_measurements.py)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        # commands one at a time, in order; the timers in their own groups
-        self.create_subscription(
-            Float64MultiArray, "commands", self._on_command, PLANT_QOS, callback_group=MutuallyExclusiveCallbackGroup()
-        )
-        if not cfg.lockstep:
+        # commands one at a time, in order; the timers in their own groups (or trajectories: plant_actuator)
+        if not self._actuator_interfaces(self._values()):
+            self.create_subscription(
+                Float64MultiArray,
+                "commands",
+                self._on_command,
+                PLANT_QOS,
+                callback_group=MutuallyExclusiveCallbackGroup(),
+            )
+        if not cfg.lockstep and not self._plays_trajectories:
             rate = float(self._values()["publish_rate_hz"]) or cfg.rate_hz
             self.create_timer(1.0 / rate, self._on_timer, callback_group=MutuallyExclusiveCallbackGroup())
         idle_period = float(self._values()["plant.idle_state_period_s"])
@@ -177,6 +184,7 @@ class PlantNode(Node):
             f"at {positions_text(cfg.initial_position)}"
             + (f", {cfg.inputs} inputs" if cfg.inputs > 1 else "")
             + (f"; model error: {self._model_error}" if errors else "")
+            + (f"; {self._actuator_summary}" if self._actuator is not None else "")
         )
 
     # ------------------------------------------------------------ parameters
@@ -285,6 +293,9 @@ class PlantNode(Node):
             u = self._zero
         with self._lock:
             self.received += 1
+            if self._actuator is not None:  # a servo, a disturbance (plant_actuator)
+                self._actuated_command(u, info)
+                return
             if self.cfg.lockstep:
                 # y_k read just after u_k is applied, stamped with the command's send time (sample k's time)
                 sent = info.get("source_timestamp") if info else None
@@ -330,6 +341,8 @@ class PlantNode(Node):
 
     def state(self) -> np.ndarray:
         """Simulated state ``[p, v, q1, q1', ...]``: now (real time, commands handed over so far) or after the last command (lockstep)."""
+        if self._actuator is not None:
+            return self._actuated_state()
         with self._lock:
             if self.cfg.lockstep:
                 return self.x_event.copy()
@@ -362,6 +375,7 @@ class PlantNode(Node):
                 "measurements_published": self._measure.published,
                 "measurement_channels": ", ".join(self._measure.map.names),
                 "diagnostics_subscribers": self._diag_pub.get_subscription_count(),
+                **self._actuator_status(),
             }
         ok = DiagnosticStatus.OK
         level = ok[0] if isinstance(ok, (bytes, bytearray)) else int(ok)

@@ -18,6 +18,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from flexmotion_ros.core.errors import ConfigError
 from flexmotion_ros.core.multi_input.dispatch import state_at_rest
 from flexmotion_ros.core.parameter_file import read_parameter_file
 from flexmotion_ros.nodes import messages
@@ -282,3 +283,20 @@ def test_a_missing_or_incomplete_measured_state_refuses_a_multi_axis_goal(ros):
     wait_for(lambda: planner._listener.store.received >= 2, 5.0, "the whole state")
     out = planner.request(np.array([1.0, 1.0]), execute=False, source="test")  # fresh: planned from there
     assert out.ok and np.array_equal(out.segment.states[0], x), out
+
+
+def test_one_input_features_are_refused_for_several_inputs_at_start_up(ros):
+    """Trajectory output, servo interfaces, feedback and the plant's actuator are one-input: one line each."""
+    refused = [
+        ("planner", {"output": "trajectory"}, r"^output: is one-input only for now, got 'trajectory' with 2 inputs"),
+        ("planner", {"command_interface": "velocity"}, r"^command_interface: is one-input only for now"),
+        ("planner", {"feedback.replan_period_s": 0.1}, r"^feedback\.replan_period_s: closed-loop replanning is one"),
+        ("plant", {"plant.input": "trajectory"}, r"^plant\.input: is one-input only for now, got 'trajectory'"),
+        ("plant", {"command_interface": "position"}, r"^command_interface: is one-input only for now"),
+        ("plant", {"plant.disturbance.type": "impulse", "plant.disturbance.value": 1.0}, r"^plant\.disturbance\.type"),
+    ]
+    for node, extra, match in refused:
+        with pytest.raises(ConfigError, match=match):
+            getattr(ros, node)(**{**GANTRY, **extra})
+    planner, _plant, _rec = start(ros)  # the defaults still stream m values on 'commands'
+    assert planner.config.model.m == 2
