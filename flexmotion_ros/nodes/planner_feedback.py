@@ -40,6 +40,7 @@ from ..core.model.measurement import measurement_map
 from ..execution.feedback import FeedbackSettings, StreamEstimator, feedback_settings
 from ..execution.output import OutputMode
 from ..execution.replan import ReplanStatus, replan
+from ..execution.splice import PLAN_TIME_WINDOW, lead_samples
 from ..execution.summary import plan_summary
 from ..execution.timeline import Segment
 from .planner_goals import MoveRecord
@@ -194,7 +195,12 @@ class FeedbackGlue:
         rec = timeline[-1].info
         target = rec.target if isinstance(rec, MoveRecord) else None
         config = self._config
-        lead = self._lead_samples()
+        # the look-ahead of replans from their own planning times (from a moving, vibrating state they take
+        # longer than goals from rest: with the goals' look-ahead most replans overran it under load)
+        lead = max(
+            self._lead_samples(),
+            lead_samples(self._fb_plan_times[-PLAN_TIME_WINDOW:], self._replan_lead_s, self._config.rate_hz),
+        )
         out = replan(
             timeline,
             max(k_next, est.sample),

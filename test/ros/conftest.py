@@ -13,6 +13,7 @@ tests fail at collection instead of being skipped.
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import os
 import random
@@ -85,9 +86,20 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
+from flexmotion_ros.execution.plan_process import PlanningProcesses
 from flexmotion_ros.nodes import messages
 from flexmotion_ros.nodes.planner_node import COMMAND_QOS, LATCHED_QOS, PlannerNode
 from flexmotion_ros.nodes.plant_node import PLANT_QOS, PlantNode
+
+# Planning child processes as ``ros2 run`` has them (forked while this process has one thread: at collection,
+# before any node or executor starts), for tests whose timing depends on planning off the interpreter lock.
+try:
+    PLANNING: PlanningProcesses | None = PlanningProcesses.fork()
+    atexit.register(PLANNING.close)
+except (RuntimeError, OSError) as _exc:
+    PLANNING, PLANNING_UNAVAILABLE = None, f"{type(_exc).__name__}: {_exc}"
+else:
+    PLANNING_UNAVAILABLE = ""
 
 #: A stiff two-mode machine: a 1.0 move takes 1.11 s at 200 Hz (222 samples).
 FAST: dict[str, Any] = {

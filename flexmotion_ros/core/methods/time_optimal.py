@@ -18,7 +18,7 @@ import time
 from ..config import PlannerConfig
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
-from ..sampled.zoh import fewest_samples, plan_time_optimal_zoh
+from ..sampled.zoh import fewest_samples, plan_time_optimal_zoh, reaches_rest_within
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.rigid_body import rigid_time
 from ..time_optimal.solver import plan_time_optimal
@@ -53,6 +53,10 @@ def _short_move(move: PreparedMove, rate_hz: float) -> PlanResult | None:
     K_lo = max(1, math.ceil(T_rigid / dt * (1.0 - 1e-12)))
     wmax = max(problem.model.omega, default=0.0)
     if K_lo > SHORT_MOVE_SAMPLES or wmax * T_rigid > SHORT_MOVE_PHASE:
+        return None
+    # one LP first: a move that cannot arrive within the whole range is not short (a small correction of a
+    # vibrating state: a rigid-body bound of a few samples, an answer of 100+; the search tried 48 counts, 0.5 s)
+    if reaches_rest_within(move, dt, K_lo + SHORT_MOVE_EXTRA) is False:
         return None
     sampled = fewest_samples(move, dt, K_lo, K_lo + SHORT_MOVE_EXTRA, None, None, t0)
     if sampled is None:

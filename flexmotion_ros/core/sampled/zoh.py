@@ -300,6 +300,25 @@ def fewest_samples(
     return search_samples(system, move.x0, move.u_max, scale, dt, K_lo, K_max, nu, finish)
 
 
+def reaches_rest_within(move: PreparedMove, dt: float, K: int) -> bool | None:
+    """Can ``K`` samples of at most ``u_max`` bring ``move`` to rest?  One full linear program (None: undecided).
+
+    Feasibility is monotone in ``K`` (the target is an equilibrium: a sequence
+    that arrives in ``K`` samples followed by holds arrives in any more), so a
+    False here also refuses every count below ``K`` -- one LP instead of a
+    search over every count (the verdict of ``min peak > u_max`` is the LP's own
+    optimum: with every sample free, weak duality is tight).
+    """
+    system = move.response
+    scale = move.error_scale(K * dt)
+    G = sample_vectors(system, K, dt) / scale
+    w = -system.expm_x(K * dt, move.x0) / scale
+    sol = solve_peak_lp(G, w, np.ones(K), np.ones(K, dtype=bool))
+    if sol is None:
+        return None
+    return bool(sol[1] <= move.u_max * (1.0 + LP_RTOL))
+
+
 def search_samples(
     system,
     x0: np.ndarray,
