@@ -18,11 +18,8 @@ Commands ``v_m = u_m / u_max``; every limit row is written ``a^T v + d <= t``
   sharing a level) may not be, and then says so (None).  Its dual gives the
   weak-duality bound of :mod:`.limit_dual`.
 * ``feasible``: the limits scaled by a fixed ``t``, no objective: the
-  last-resort infeasibility proof of :mod:`.limits` (HiGHS's verdict; an
-  interior-point "infeasible" is confirmed by the simplex method within
-  ``CONFIRM_TIME_S``: on large, barely infeasible LPs the simplex method
-  can stall for minutes, and then the interior-point verdict stands alone,
-  as the proof records).
+  last-resort infeasibility proof of :mod:`.planner` (HiGHS's verdict, used
+  as a proof only when the independent formulation of :mod:`.certify` agrees).
 * ``smooth`` (the accepted solve): ``t`` fixed at ``1 - MARGIN``,
   ``|v_m| <= 1``, minimum total variation ``sum |u_k - u_{k-1}|`` (where a
   deflection limit is set or no slew limit: under a slew limit alone any
@@ -73,10 +70,12 @@ MARGIN = 1e-7
 MAX_ROW_ROUNDS = 10
 #: Above this many free samples (with state chains) the interior-point method beats the simplex.
 IPM_SAMPLES = 300
-#: Time the simplex method gets to confirm an interior-point "infeasible" verdict (s).
-CONFIRM_TIME_S = 2.0
 #: Row kinds in :class:`LPSolution`.
 STATE, CUT, SLEW = 0, 1, 2
+
+
+class LPUndecided(SolverError):
+    """HiGHS decided neither "optimal" nor "infeasible" with any method: the LP says nothing about ``K``."""
 
 
 @dataclass
@@ -197,7 +196,8 @@ class LimitLP:
         cannot be met with this parametrisation; ``scaled``: the runs and
         free samples cannot reach the target), or when the rows inside runs,
         added until the solution meets every limit at every sample, did not
-        settle within ``MAX_ROW_ROUNDS``.
+        settle within ``MAX_ROW_ROUNDS``.  Raises :class:`LPUndecided` when
+        HiGHS gives neither verdict with any method (never read as "infeasible").
         """
         seg = seg if seg is not None else Segments.all_free(K)
         rows = self._rows.setdefault(K, [set() for _ in self.blocks])
@@ -422,23 +422,29 @@ class LimitLP:
         method = "highs-ipm" if F.size > IPM_SAMPLES and self.blocks else "highs"
         kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=HIGHS_OPTIONS)
         res = linprog(cost, method=method, **kw)
-        if res.status not in (0, 2) and method != "highs":  # the interior-point method gave up: simplex
-            method = "highs"
-            res = linprog(cost, method=method, **kw)
-        verdict = "dual simplex" if method == "highs" else "interior point"
-        if res.status == 2 and method != "highs":
-            # "infeasible" decides proofs: confirmed by the simplex method, within a time limit (on a
-            # barely infeasible LP with a thousand samples or more it can stall for minutes)
-            opts = {**HIGHS_OPTIONS, "time_limit": CONFIRM_TIME_S}
-            check = linprog(cost, method="highs", **{**kw, "options": opts})
-            if check.status != 1:  # 1: time limit reached: the interior-point verdict stands alone
-                res, verdict = check, "interior point, confirmed by dual simplex"
+        tried = [f"{method}: {res.message}"]
+        if res.status not in (0, 2):
+            # neither optimal nor infeasible (e.g. "HiGHS Status 0: Not Set", an iteration or time limit):
+            # ask the other methods, then the dual simplex without presolve (it sees the rows unscaled)
+            for alt, opts in (
+                ("highs-ds" if method != "highs-ds" else "highs-ipm", HIGHS_OPTIONS),
+                ("highs-ipm" if method == "highs" else "highs-ds", HIGHS_OPTIONS),
+                ("highs-ds", {**HIGHS_OPTIONS, "presolve": False}),
+            ):
+                res = linprog(cost, method=alt, **{**kw, "options": opts})
+                tried.append(f"{alt}{'' if opts is HIGHS_OPTIONS else ' (no presolve)'}: {res.message}")
+                if res.status in (0, 2):
+                    method = alt
+                    break
+        verdict = "interior point" if method == "highs-ipm" else "dual simplex"
         if res.status == 2:
+            # "infeasible" is a verdict of one method on this formulation; where it decides a proof,
+            # the planner has it confirmed by an independent formulation (:mod:`.certify`)
             self.infeasible_verdicts += 1
             self.infeasible_method = verdict
             return None
         if res.status != 0:
-            raise SolverError(f"limited planner: linear program at {K} samples failed ({res.message})")
+            raise LPUndecided(f"limited planner: linear program at {K} samples undecided ({'; '.join(tried)})")
         x = res.x
         t = float(x[0])
         v = np.empty(K)

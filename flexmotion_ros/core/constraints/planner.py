@@ -54,13 +54,19 @@ from ..model.modal_model import check_positive
 from ..results import ProofKind, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.zoh import plan_time_optimal_zoh
+from .certify import feasible as independent_feasible
+from .certify import prefix_feasible
 from .dual import dual_bound, lift, proves_infeasible
 from .limits import Limits, check_limits
-from .lp import LimitLP, LPSolution, Segments
+from .lp import LimitLP, LPSolution, LPUndecided, Segments
 from .structure import map_runs, solution_runs
 
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64
+#: ... or this many samples more, whichever is larger (short moves).
+CAP_EXTRA = 1000
+#: Beyond this many times the unlimited count, the search first tries to prove the limits impossible.
+SOFT_FACTOR = 8
 MAX_CUT_ROUNDS = 12
 #: Levels: rates a factor COARSE_FACTOR apart; the coarsest has at most FULL_SAMPLES samples, all free.
 COARSE_FACTOR = 4
@@ -121,6 +127,7 @@ class LimitedProfile:
             "peaks": self.peaks,
             "lp_solves": self.lp_solves,
             "cuts": self.cuts,
+            "lower_bound_proof": str(self.extra.get("lower_bound_proof", "")),
         }
 
 
@@ -151,6 +158,7 @@ class _Level:
         self.sols: dict[int, LPSolution] = {}
         self.t: dict[int, float] = {}
         self.own = False  # the reference is this level's own solution
+        self.undecided: set[int] = set()  # counts where HiGHS gave no verdict with any method
 
     @property
     def full(self) -> bool:
@@ -162,22 +170,29 @@ class _Level:
         runs, K_ref = self.ref
         return map_runs(runs, K_ref, K, self.width)
 
-    def _cap(self, K: int) -> None:
-        if K > self.K_cap:
-            names = ", ".join(f"limits.{n}" for n in self.lp.limits.active)
-            raise GoalError(
-                names,
-                f"no move within {self.K_cap / self.rate:.4g} s ({MAX_FACTOR} x the unlimited move) satisfies the limits; relax them",
-            )
-
     def probe(self, K: int) -> float:
+        """``t(K)``: an upper bound on ``t*(K)`` (exact with every sample free); ``inf`` if HiGHS gave no verdict."""
         if K not in self.t:
-            self._cap(K)
-            sol = self.lp.solve(K, self.segments(K)) if self.ref is not None else None
-            if sol is None and self.ref is not None:  # the runs cannot reach the target: wider windows
-                sol = self.lp.solve(K, map_runs(self.ref[0], self.ref[1], K, WIDE * max(self.width, OWN_WIDTH)))
+            if K > self.K_cap:
+                raise _BeyondCap(K)
+            sol = None
+            if self.ref is not None:
+                for width in (None, WIDE * max(self.width, OWN_WIDTH)):  # the runs cannot reach: wider windows
+                    seg = self.segments(K) if width is None else map_runs(self.ref[0], self.ref[1], K, width)
+                    try:
+                        sol = self.lp.solve(K, seg)
+                    except LPUndecided:
+                        sol = None
+                    if sol is not None:
+                        break
             if sol is None:  # no windows, or still none: every sample free (seconds at 1 kHz)
-                sol = self.lp.solve(K)
+                try:
+                    sol = self.lp.solve(K)
+                except LPUndecided:
+                    # no verdict: this K says nothing (never "infeasible"); the search steps past it
+                    self.t[K] = math.inf
+                    self.undecided.add(K)
+                    return math.inf
             if sol is None:
                 m = self.lp.model
                 turns = ", ".join(f"{w / self.rate / math.pi:.6g}" for w in m.omega)
@@ -197,9 +212,17 @@ class _Level:
         """After new cuts: every probe may have changed."""
         self.sols.clear()
         self.t.clear()
+        self.undecided.clear()
 
     def fewest(self, guess: int, lo: int) -> int:
-        """Fewest ``K > lo`` with ``t(K) <= 1``: secant steps from ``guess``, bracketed, then bisection."""
+        """Fewest ``K > lo`` with ``t(K) <= 1``: secant steps from ``guess``, bracketed, then bisection.
+
+        Until a feasible count is found the steps grow geometrically (at most
+        doubling the count, at least one more sample than the largest probe): a
+        flat ``t`` (a secant crossing far away) cannot jump past the cap, and a
+        cap reached this way is only reported (:class:`_BeyondCap`), never read
+        as "infeasible".  Every count claimed impossible is proved by :func:`_prove`.
+        """
         K = max(guess, lo + 1)
         step = 1
         widths: list[int] = []
@@ -213,7 +236,8 @@ class _Level:
             cand = self._secant()
             if hi is None:
                 top = max(self.t)
-                cand = top + step if cand is None or cand <= top else cand
+                cand = top + step if cand is None or cand <= top else min(cand, 2 * top + 1)
+                cand = min(cand, max(self.K_cap, top + 1))  # the cap itself is probed before giving up
                 step *= 2
             else:
                 widths.append(hi - below)
@@ -235,7 +259,7 @@ class _Level:
 
     def crossing(self) -> float | None:
         """Real-valued ``K`` where the secant through the two probes nearest ``t = 1`` crosses 1."""
-        pts = sorted(self.t.items(), key=lambda kv: abs(kv[1] - 1.0))[:2]
+        pts = sorted(((k, v) for k, v in self.t.items() if math.isfinite(v)), key=lambda kv: abs(kv[1] - 1.0))[:2]
         if len(pts) < 2 or pts[0][1] == pts[1][1]:
             return None
         (k1, t1), (k2, t2) = pts
@@ -254,6 +278,10 @@ class _Level:
             if smooth is not None:
                 sol = smooth
         return solution_runs(sol, self.lp.um, self.lp.slew), K
+
+
+class _BeyondCap(Exception):
+    """The search reached ``K_cap`` samples without a feasible count (no claim about larger counts)."""
 
 
 def _extrapolate(times: list[tuple[float, float]], dt: float) -> float:
@@ -287,6 +315,8 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     t = level.probe(K)
     if t <= 1.0:
         return False
+    if K in level.undecided:
+        return None
     sol = level.sols[K]
     if level.full or sol.segments.n_free == K:
         if proves_infeasible(dual_bound(lp, sol)[0]):
@@ -295,7 +325,10 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
         if proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
             return ProofKind.DUAL
         # wider windows around this structure, lifted again; then every sample free
-        wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
+        try:
+            wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
+        except LPUndecided:
+            wide = None
         if wide is not None:
             if wide.t <= 1.0:
                 level.sols[K], level.t[K] = wide, wide.t
@@ -305,11 +338,50 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
-    full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
+    try:
+        full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
+    except LPUndecided:
+        return None  # no verdict: K - 1 stays unproved (the count is reported not proved fewest)
     if full is None:
-        return f"{ProofKind.HIGHS} ({lp.infeasible_method})"
+        # one method's verdict on one formulation: a proof only if the independent formulation agrees
+        said, method = independent_feasible(lp.problem, K, lp.dt, lp.limits, scale=1.0 + LOOSEN, cuts=lp.cuts)
+        if said is False:
+            return f"{ProofKind.HIGHS} ({lp.infeasible_method}, confirmed by an independent state-space LP ({method}))"
+        return None
     level.sols[K], level.t[K] = full, 1.0
     return False
+
+
+#: The prefix of the impossibility proof covers at most this many samples.
+PREFIX_SAMPLES = 4000
+
+
+def _prove_impossible(problem: MoveProblem, dt: float, limits: Limits, K: int, exc: _BeyondCap) -> None:
+    """Raise :class:`GoalError` if no move of any length meets the limits (proved), else return.
+
+    The proof: the limits cannot be held even over the first ``M`` samples
+    with no arrival asked, and both HiGHS methods agree on the independent
+    state-space formulation (:func:`.certify.prefix_feasible`).  A ``K``-sample
+    move held at rest after its arrival would hold them, so none exists.
+    """
+    M = min(K, PREFIX_SAMPLES)
+    said, method = prefix_feasible(problem, M, dt, limits, scale=1.0 + LOOSEN)
+    if said is False:
+        names = ", ".join(f"limits.{n}" for n in limits.active)
+        raise GoalError(
+            names,
+            f"no move satisfies the limits: from this initial state they are broken within {M} samples "
+            f"({M * dt:.4g} s) whatever the command (proved: {method} on the state-space LP); relax them",
+        ) from exc
+
+
+def _not_found(limits: Limits, K_cap: int, rate: float, exc: _BeyondCap) -> None:
+    """Nothing found up to the hard cap and nothing proved impossible: say exactly that."""
+    names = ", ".join(f"limits.{n}" for n in limits.active)
+    raise SolverError(
+        f"limited planner: no sequence found up to {K_cap} samples ({K_cap / rate:.4g} s, {MAX_FACTOR} x the "
+        f"unlimited move) and the limits ({names}) are not proved impossible; nothing is returned"
+    ) from exc
 
 
 def _accept(level: _Level, K: int):
@@ -379,7 +451,8 @@ def plan_limited_zoh(
             time.perf_counter() - t0,
         )
     proved = K0 if unlimited.minimal else unlimited.lower_bound_samples  # every K < proved is infeasible
-    K_cap = max(K0 * MAX_FACTOR, K0 + 1000)
+    K_cap = max(K0 * MAX_FACTOR, K0 + CAP_EXTRA)
+    K_soft = max(K0 * SOFT_FACTOR, K0 + CAP_EXTRA // 10)  # beyond this, first try to prove the limits impossible
     T_star = unlimited.continuous.duration if unlimited.continuous is not None else (proved - 1) * dt
     # levels, coarsest first
     rates = [rate]
@@ -390,15 +463,30 @@ def plan_limited_zoh(
     for r in rates:
         final = r == rate
         width = 0 if ref is None else MAP_WIDTH * COARSE_FACTOR + 2
-        level = _Level(problem, r, limits, round(K_cap * r / rate) + 10, lp if final else None, ref, width)
+        level = _Level(problem, r, limits, round(K_soft * r / rate) + 10, lp if final else None, ref, width)
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
         guess = math.ceil(_extrapolate(times, 1.0 / r) * r - 1e-9) if times else lo + 1
         try:
             K = level.fewest(guess, lo)
+        except _BeyondCap as exc:
+            if not final:
+                ref = None  # this coarse rate finds nothing below the soft cap: skip it (it only guides)
+                skipped.append(r)
+                solves += level.lp.solves
+                continue
+            # nothing up to the soft cap: impossible (proved) or keep searching up to the hard cap
+            _prove_impossible(problem, dt, limits, K_soft, exc)
+            level.K_cap = K_cap
+            try:
+                K = level.fewest(max(level.t) + 1, lo)
+            except _BeyondCap as exc2:
+                _not_found(limits, K_cap, rate, exc2)
         except UnreachableError:
             if final:
                 raise
-            ref = None  # a coarse rate the user never asked for cannot steer a mode: skip it
+            # a coarse rate the user never asked for cannot steer a mode, or finds nothing below
+            # the cap: skip it (it only guides the search)
+            ref = None
             skipped.append(r)
             solves += level.lp.solves
             continue
@@ -413,6 +501,10 @@ def plan_limited_zoh(
     proof = ProofKind.UNLIMITED
     rounds = 2 * MAX_CUT_ROUNDS
     for _ in range(rounds):
+        if K in level.undecided or K > K_cap:
+            raise SolverError(
+                f"limited planner: no LP verdict at {K} samples with any HiGHS method; nothing is returned"
+            )
         # the proof for K - 1, moving down while K - 1 turns out feasible
         while K - 1 >= proved and K - 1 > reject:
             res = _prove(level, K - 1)
@@ -426,12 +518,15 @@ def plan_limited_zoh(
         if isinstance(res, tuple):
             accepted = (K, *res)
             break
-        if res == "cuts":  # the relaxation changed: search again from K
-            level.forget()
-            K = level.fewest(K, max(proved - 1, reject))
-        else:  # feasible only within the margin: one more sample
-            reject = K
-            K = level.fewest(K + 1, K)
+        try:
+            if res == "cuts":  # the relaxation changed: search again from K
+                level.forget()
+                K = level.fewest(K, max(proved - 1, reject))
+            else:  # feasible only within the margin: one more sample
+                reject = K
+                K = level.fewest(K + 1, K)
+        except _BeyondCap as exc:
+            _not_found(limits, K_cap, rate, exc)
     if accepted is None:
         raise SolverError(
             f"limited planner: no sequence passed the exact limit checks in {rounds} rounds "
