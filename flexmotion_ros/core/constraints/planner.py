@@ -208,6 +208,25 @@ class _Level:
                 self.own = True
         return self.t[K]
 
+    def anchor(self, K: int) -> bool:
+        """Re-anchor the windows on the exact optimum at ``K`` (every sample free); forget window probes.
+
+        False (nothing changed) if that LP gives no solution or no verdict, or is too large.
+        """
+        if K > FULL_LP_MAX_SAMPLES:
+            return False
+        try:
+            sol = self.lp.solve(K)
+        except LPUndecided:
+            return False
+        if sol is None:
+            return False
+        self.forget()
+        self.sols[K], self.t[K] = sol, sol.t
+        self.ref = (solution_runs(sol, self.lp.um, self.lp.slew), K)
+        self.width, self.own = OWN_WIDTH, True
+        return True
+
     def forget(self) -> None:
         """After new cuts: every probe may have changed."""
         self.sols.clear()
@@ -338,6 +357,8 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
+    if K > FULL_LP_MAX_SAMPLES:
+        return None  # the full LP would take many seconds: K stays unproved (reported, not hidden)
     try:
         full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
     except LPUndecided:
@@ -352,6 +373,11 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     return False
 
 
+#: No LP with every sample free (proof or re-anchoring) above this many samples: at 13,000 samples one
+#: such LP takes 10 s and more; beyond it a count the dual bounds cannot settle is left unproved.
+FULL_LP_MAX_SAMPLES = 6000
+#: Times the search may re-anchor its windows on an exact optimum when they proved misleading.
+MAX_ANCHORS = 2
 #: The prefix of the impossibility proof covers at most this many samples.
 PREFIX_SAMPLES = 4000
 
@@ -500,16 +526,21 @@ def plan_limited_zoh(
     reject = proved - 1  # counts up to here are out: proved infeasible, or no sequence passed the checks
     proof = ProofKind.UNLIMITED
     rounds = 2 * MAX_CUT_ROUNDS
+    anchors = 0
     for _ in range(rounds):
-        if K in level.undecided or K > K_cap:
-            raise SolverError(
-                f"limited planner: no LP verdict at {K} samples with any HiGHS method; nothing is returned"
-            )
         # the proof for K - 1, moving down while K - 1 turns out feasible
         while K - 1 >= proved and K - 1 > reject:
             res = _prove(level, K - 1)
             if res is False:
                 K -= 1
+                if anchors < MAX_ANCHORS and level.anchor(K):
+                    # the windows misled the search (a coarse level's structure was wrong): search
+                    # again around the exact optimum at K instead of stepping down one sample at a time
+                    anchors += 1
+                    try:
+                        K = level.fewest(K, max(proved - 1, reject))
+                    except _BeyondCap as exc:  # cannot happen below a feasible K; kept honest anyway
+                        _not_found(limits, K_cap, rate, exc)
                 continue
             if res:
                 proved, proof = K, res
