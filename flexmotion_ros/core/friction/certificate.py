@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import Enum
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,6 +33,27 @@ CLAIM = (
     "velocity reversals): necessary conditions only; global time-optimality is not proved (friction makes the "
     "reachable sets non-convex); lower_bound_s is a proved bound"
 )
+
+
+class FrictionStatus(str, Enum):
+    """What was proved about a move under friction (:attr:`FrictionCertificate.status`).
+
+    None of them claims global time-optimality (friction makes the reachable
+    sets non-convex); every returned move passed the exact event-located check
+    (rest at the target, ``|u| <= u_max``) whatever its status.
+    """
+
+    #: The hybrid Pontryagin conditions hold, with the sign structure proved per costate piece (:data:`CLAIM`).
+    EXTREMAL = "extremal"
+    #: An exact bang-bang move whose extremal check failed (the message says which condition).
+    NOT_EXTREMAL = "exact_not_extremal"
+    #: An exact piecewise-constant move (the fewest-sample LP at a coarse rate); no extremal was found.
+    SAMPLED = "exact_sampled"
+    #: Already at rest at the target: nothing to do.
+    AT_REST = "at_rest"
+
+    def __str__(self) -> str:
+        return str(self.value)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +79,8 @@ class FrictionCertificate:
         What is and is not proved (default :data:`CLAIM`).
     message : str
         Why it failed, ``"ok"``, or a note (``"already at rest"``).
+    status : FrictionStatus
+        What was proved (default: ``EXTREMAL`` if ``passed``, else ``NOT_EXTREMAL``).
     """
 
     passed: bool
@@ -68,6 +92,12 @@ class FrictionCertificate:
     costate_final: np.ndarray
     claim: str = CLAIM
     message: str = "ok"
+    status: FrictionStatus | None = None
+
+    def __post_init__(self) -> None:
+        if self.status is None:
+            status = FrictionStatus.EXTREMAL if self.passed else FrictionStatus.NOT_EXTREMAL
+            object.__setattr__(self, "status", status)
 
     def to_dict(self) -> dict:
         """JSON-friendly summary."""
@@ -81,6 +111,7 @@ class FrictionCertificate:
             "costate_final": [float(v) for v in self.costate_final],
             "claim": self.claim,
             "message": self.message,
+            "status": str(self.status),
         }
 
 

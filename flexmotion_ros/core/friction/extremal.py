@@ -33,6 +33,8 @@ class Extremal:
         self.L = levels.size - 1
         self.s = scale
         self.sig_scale = 1.0
+        #: Residual evaluations left (shared by the caller across solves: a list of one int); None: no limit.
+        self.budget: list[int] | None = None
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -68,6 +70,10 @@ class Extremal:
         return out
 
     def residual(self, y: np.ndarray, want_lam_jac: bool = False):
+        if self.budget is not None:
+            if self.budget[0] <= 0:
+                return None  # out of evaluations: the solve fails (the caller moves on)
+            self.budget[0] -= 1
         t_sw, T, lam = self.unpack(y)
         u = PiecewiseConstant.from_switches(t_sw, self.levels, T)
         run = self.sys.run(self.x0, u, [T], lock_after=float(t_sw[-1]) if self.L else 0.0)
