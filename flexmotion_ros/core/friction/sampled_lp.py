@@ -28,7 +28,6 @@ event-located friction simulation of :mod:`.contact`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
