@@ -56,6 +56,13 @@ class FrictionStatus(str, Enum):
         return str(self.value)
 
 
+#: What an ``exact_sampled`` move claims.
+SAMPLED_CLAIM = (
+    "exact piecewise-constant move (the fewest samples found at a coarse rate for its velocity-sign pattern, "
+    "checked by the event-located friction simulation); no optimality is claimed; lower_bound_s is a proved bound"
+)
+
+
 @dataclass(frozen=True, kw_only=True)
 class FrictionCertificate:
     """Evidence that a bang-bang move under friction is a Pontryagin extremal of the piecewise system.

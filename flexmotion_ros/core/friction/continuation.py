@@ -23,7 +23,7 @@ from .structure import consistent_switches, newton_solve
 #: Newton iterations per solve (a step that needs more is too long: halve it).
 MAX_ITER = 12
 #: Residual evaluations (one exact friction run each) the whole continuation may spend.
-MAX_EVALS = 80
+MAX_EVALS = 48
 #: Newton solves the continuation may spend before it gives up.
 MAX_SOLVES = 8
 

@@ -330,49 +330,75 @@ def fastest_samples(
 ) -> FrictionSolution | None:
     """Fewest samples (searched, not proved) with least peak ``<= u_max``; patterns from ``template``.
 
-    Steps up geometrically from ``K_guess`` until a count works, then down
-    geometrically until one does not, then bisects.  Each probe starts its
-    pattern from the last consistent one found (mapped by normalised time).
+    One signed LP per probed count with the current pattern (the template,
+    then the last pattern that worked, mapped by normalised time): up
+    geometrically until a count works, down geometrically until one does
+    not, then bisection.  Where the current pattern fails (the first probe,
+    and one count below the count found) the pattern is iterated to
+    consistency (:func:`consistent_pattern`); a better pattern restarts the
+    search down from there (a few rounds).
     """
     um = lp.problem.u_max * (1.0 + 1e-12)
     K_max = K_max if K_max is not None else max(8 * K_guess, K_guess + 200)
     tried: dict[int, FrictionSolution | None] = {}
     state = {"template": template}
 
-    def ok(K: int) -> bool:
-        if K not in tried:
-            sol = consistent_pattern(lp, K, template_pattern(state["template"], K))
-            tried[K] = sol
-            if sol is not None:
-                pat = sol.pattern
-                state["template"] = lambda tau, pat=pat: pat[
-                    np.minimum((np.asarray(tau) * pat.size).astype(int), pat.size - 1)
-                ]
-        sol = tried[K]
+    def remember(sol: FrictionSolution) -> None:
+        pat = sol.pattern
+        state["template"] = lambda tau, pat=pat: pat[np.minimum((np.asarray(tau) * pat.size).astype(int), pat.size - 1)]
+
+    def feasible(sol: FrictionSolution | None) -> bool:
         return sol is not None and sol.t <= um
 
+    def ok(K: int) -> bool:
+        if K not in tried:
+            tried[K] = lp.solve(K, template_pattern(state["template"], K))
+            if feasible(tried[K]):
+                remember(tried[K])
+        return feasible(tried[K])
+
+    def fixed_point(K: int) -> bool:
+        sol = consistent_pattern(lp, K, template_pattern(state["template"], K))
+        if not feasible(sol):
+            return False
+        tried[K] = sol
+        remember(sol)
+        return True
+
     K = max(K_guess, K_min)
-    step = max(1, K // 100)
+    step = max(1, K // 50)
+    first = True
     while not ok(K):
+        if first and fixed_point(K):
+            break
+        first = False
         if K >= K_max:
             return None
         K = min(K_max, K + step)
         step *= 2
-    hi, lo, step = K, None, max(1, K // 100)
-    while lo is None:
-        cand = hi - step
-        if cand < K_min:
-            lo = K_min - 1
-        elif ok(cand):
-            hi = cand
-            step *= 2
-        else:
-            lo = cand
-    lo = max([lo] + [k for k in tried if k < hi and not ok(k)])
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if ok(mid):
-            hi = mid
-        else:
-            lo = mid
+    hi = K
+    for _ in range(3):
+        lo, step = None, max(1, hi // 50)
+        while lo is None:
+            cand = hi - step
+            if cand < K_min:
+                lo = K_min - 1
+            elif ok(cand):
+                hi = cand
+                step *= 2
+            else:
+                lo = cand
+        lo = max([lo] + [k for k in tried if k < hi and not feasible(tried[k])])
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if ok(mid):
+                hi = mid
+            else:
+                lo = mid
+        if hi - 1 < K_min or not fixed_point(hi - 1):
+            break
+        # a better pattern: counts below may work now
+        hi -= 1
+        for k in [k for k in tried if k < hi]:
+            del tried[k]
     return tried[hi]

@@ -36,7 +36,7 @@ from ..results import BangBangProfile
 from ..simulation.exact import PiecewiseConstant
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import FINAL_STATE_RTOL
-from .certificate import FrictionCertificate, FrictionStatus, certify_friction
+from .certificate import SAMPLED_CLAIM, FrictionCertificate, FrictionStatus, certify_friction
 from .contact import FrictionSystem
 from .continuation import continue_in_friction
 from .extremal import Extremal
@@ -223,7 +223,9 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
             return best
     # 2. the structure of the fewest-sample move at a coarse rate (friction as a known force on each
     #    velocity-sign piece, the pattern iterated to consistency), polished by Newton
-    T_ref, sampled = base.duration, None
+    # the first count guessed from the rigid body's slow-down under friction (c = 0 from rest)
+    rigid0 = rigid_friction_time(model, problem.u_max, 0.0, problem.x0, problem.target)
+    T_ref, sampled = base.duration * (lb / rigid0 if lb and rigid0 else 1.0), None
     for K_c in STRUCTURE_SAMPLES:
         sol = None
         for _ in range(3):  # a move much slower than the frictionless one: coarser samples
@@ -260,7 +262,7 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
 #: Samples of the coarse sampled moves the structure is read from, coarsest first.
 STRUCTURE_SAMPLES = (64, 192)
 #: Residual evaluations (exact friction runs) Newton may spend on the structure of one sampled move.
-STRUCTURE_EVALS = 80
+STRUCTURE_EVALS = 60
 
 
 def _frictionless_scales(problem: MoveProblem, base: BangBangProfile):
@@ -333,6 +335,7 @@ def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int,
             f"pattern (exact, checked; not proved optimal)"
         ),
         status=FrictionStatus.SAMPLED,
+        claim=SAMPLED_CLAIM,
     )
     reversals = np.array([t for t, kind, _ in run.events if kind == "reversal" and t < T * (1.0 - 1e-12)])
     return FrictionProfile(

@@ -126,6 +126,8 @@ def plan_time_optimal_friction_zoh(
     K_cap = MAX_FACTOR * K0 + EXTRA_SAMPLES
     reasons: list[str] = []
     found: dict[int, tuple | None] = {}
+    lev = np.asarray(continuous.levels, float)
+    changes = np.asarray(continuous.switch_times, float)[np.abs(np.diff(lev)) > 1e-6 * um]  # where the level moves
 
     def attempt(K: int):
         """``(u, states)`` of a sequence of ``K`` samples that passes the exact check, or None."""
@@ -134,15 +136,18 @@ def plan_time_optimal_friction_zoh(
         found[K] = None
         stretch = K * dt / T
         mids = (np.arange(K) + 0.5) * dt / stretch
-        sigma = np.sign(continuous.input()(mids))
-        sigma[sigma == 0.0] = 1.0
-        centres = np.round(np.concatenate([continuous.switch_times, continuous.reversals]) * stretch / dt).astype(int)
+        if bang:
+            sigma = np.sign(continuous.input()(mids))
+            sigma[sigma == 0.0] = 1.0
+        else:  # a sampled continuous move: its own levels (stick arcs hold |u| = F, not the peak)
+            sigma = continuous.input()(mids) / um
+        centres = np.round(np.concatenate([changes, continuous.reversals]) * stretch / dt).astype(int)
         patterns = [_velocity_pattern(K, dt, first, continuous.reversals, stretch)]
         if continuous.reversals.size:
             patterns.append(np.full(K, float(first)))  # a sequence without reversal may exist too
         for s in patterns:
-            for width in WIDTHS if bang else (None,):
-                if width is None and K > FULL_SAMPLES and bang:
+            for width in WIDTHS:
+                if width is None and K > FULL_SAMPLES:
                     continue
                 if width is None:
                     sol = lp.solve(K, s)

@@ -35,6 +35,7 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
         "frictionless_duration": continuous.frictionless_duration,
         "added_time_s": continuous.duration - continuous.frictionless_duration,
         "optimality": continuous.certificate.claim,
+        "friction_status": str(continuous.certificate.status),
     }
     if sampled is not None:
         info["sampled_extra_samples"] = int(sampled.extra.get("extra_samples", 0))
