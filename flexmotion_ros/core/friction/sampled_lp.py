@@ -38,6 +38,11 @@ from ..model.boundary import MoveProblem
 from ..tolerances import HIGHS_OPTIONS
 from .contact import ClosedForm
 
+#: HiGHS options of every friction LP: tight feasibility, and a time limit (s): the dual simplex can
+#: stall for minutes on a degenerate windowed LP; such an LP counts as "no solution" (wider windows,
+#: or another count, are tried), never as a verdict.
+LP_TIME_LIMIT_S = 1.0
+LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
 #: Rounds of sign-row generation in a windowed LP.
 SIGN_ROUNDS = 12
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
@@ -187,7 +192,7 @@ class FrictionLP:
             b_eq=np.zeros(A_eq.shape[0]),
             bounds=np.column_stack([lo, hi]),
             method="highs-ds",
-            options=HIGHS_OPTIONS,  # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep
+            options=LP_OPTIONS,  # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep
         )
         if res.status != 0 or res.x[imu] <= 0.0:
             return None
@@ -243,7 +248,7 @@ class FrictionLP:
                 b_eq=b_eq,
                 bounds=bounds,
                 method="highs-ds",
-                options=HIGHS_OPTIONS,
+                options=LP_OPTIONS,
             )
             if res.status != 0 or res.x[-1] <= 0.0:
                 return None

@@ -1,6 +1,6 @@
-"""Time-optimal moves under rigid-body Coulomb friction: the bang-bang extremal by continuation.
+"""Time-optimal moves under rigid-body Coulomb friction: the bang-bang extremal, found, not only continued.
 
-The friction model and the exact event-located simulator are :mod:`.friction`.
+The friction model and the exact event-located simulator are :mod:`.contact`.
 
 Time-optimal moves
 ------------------
@@ -10,15 +10,28 @@ linear.  The hybrid maximum principle gives ``u = -u_max sgn(B^T lambda)``,
 ``lambda' = -A^T lambda`` between events and a jump of ``lambda`` along
 ``C^T`` at each velocity reversal (``lambda^- = S^T lambda^+``, ``S`` the
 saltation matrix), which keeps the Hamiltonian continuous.  The switch times,
-the duration and ``lambda(T)`` are found by Newton's method on these
-conditions (final state, ``B^T lambda(t_j) = 0``, ``H = 0``), by continuation
-in ``F`` from the certified frictionless optimum.  The result is checked by
-the exact friction simulation (rest at the target) and certified as a
-Pontryagin extremal (sign structure proved per costate piece).  The friction
-system is not linear, so the extremal is *not* proved globally optimal; the
-rigid-body friction optimum is reported as a proved lower bound (c = 0, from
-rest).  The extremal conditions are checked by :mod:`.friction_certificate`;
-the zero-order-hold version is :mod:`.friction_zoh`.
+the duration and ``lambda(T)`` solve these conditions (final state,
+``B^T lambda(t_j) = 0``, ``H = 0``) by Newton's method (:mod:`.extremal`)
+from a starting point found in turn by
+
+1. continuation in ``F`` from the certified frictionless optimum
+   (:mod:`.continuation`, bounded: it stops where the structure changes);
+2. the structure of the fewest-sample move at a coarse rate
+   (:mod:`.sampled_lp`: between reversals the friction is a known force, so
+   for a velocity-sign pattern the move is an LP; the pattern is iterated to
+   consistency), read off and polished (:mod:`.structure`).
+
+The result is checked by the exact friction simulation (rest at the target)
+and certified as a Pontryagin extremal (sign structure proved per costate
+piece, :mod:`.certificate`).  The friction system is not linear, so an
+extremal is *not* proved globally optimal; the rigid-body friction optimum is
+reported as a proved lower bound (c = 0, from rest).  When no extremal is
+found (e.g. the optimum rests on the way, ``|u| = F`` holding the body while
+the modes are steered: a stick arc, outside the bang-bang conditions), the
+exact sampled move is returned with status ``exact_sampled``; an exact
+bang-bang move whose check failed has status ``exact_not_extremal``.  The
+status enum and message say exactly what was proved.  The zero-order-hold
+version is :mod:`.zoh`.
 """
 
 from __future__ import annotations

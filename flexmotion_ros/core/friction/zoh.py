@@ -52,6 +52,18 @@ def _velocity_pattern(K: int, dt: float, first: int, reversals: np.ndarray, stre
     return s
 
 
+def _directions(check: FrictionSystem, problem: MoveProblem, continuous: FrictionProfile) -> tuple[int, np.ndarray]:
+    """The first direction of motion of the continuous move and the times it changes: at a reversal, or
+    where the body slips the other way after resting (a sampled move with stick arcs)."""
+    T = continuous.duration
+    run = check.run(problem.x0, continuous.input(), [T])
+    moving = [(t0, mode) for t0, _t1, mode, _lv in run.segments if mode != 0 and t0 < T * (1.0 - 1e-12)]
+    if not moving:
+        return 1, np.empty(0)
+    turns = [t0 for (t0, m), (_, prev) in zip(moving[1:], moving[:-1]) if m != prev]
+    return int(moving[0][1]), np.array(turns)
+
+
 def _window(K: int, centres: np.ndarray, width: int) -> np.ndarray:
     free = np.zeros(K, dtype=bool)
     for c in centres:
@@ -118,8 +130,7 @@ def plan_time_optimal_friction_zoh(
     lp = FrictionLP(problem, F, dt)
     xf, I = lp.xf, lp.I
     bang = continuous.certificate.status != FrictionStatus.SAMPLED  # levels +-u_max: windows make sense
-    first = int(np.sign(model.b0 * continuous.levels[0])) if problem.x0[1] == 0.0 else int(np.sign(problem.x0[1]))
-    first = first or 1
+    first, turns = _directions(check, problem, continuous)
     lb = continuous.lower_bound
     lower = math.ceil(lb / dt * (1.0 - 1e-12)) if lb is not None else 0
     K0 = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
@@ -141,18 +152,23 @@ def plan_time_optimal_friction_zoh(
             sigma[sigma == 0.0] = 1.0
         else:  # a sampled continuous move: its own levels (stick arcs hold |u| = F, not the peak)
             sigma = continuous.input()(mids) / um
-        centres = np.round(np.concatenate([changes, continuous.reversals]) * stretch / dt).astype(int)
-        patterns = [_velocity_pattern(K, dt, first, continuous.reversals, stretch)]
-        if continuous.reversals.size:
+        centres = np.round(np.concatenate([changes, turns]) * stretch / dt).astype(int)
+        patterns = [_velocity_pattern(K, dt, first, turns, stretch)]
+        if turns.size:
             patterns.append(np.full(K, float(first)))  # a sequence without reversal may exist too
         for s in patterns:
+            last = None
             for width in WIDTHS:
-                if width is None and K > FULL_SAMPLES:
-                    continue
-                if width is None:
+                free = np.ones(K, bool) if width is None else _window(K, centres, width)
+                if last is not None and np.array_equal(free, last):
+                    continue  # the same LP again
+                last = free
+                if free.all():  # every sample free: the chain form (sign conditions as bounds)
+                    if K > FULL_SAMPLES:
+                        continue
                     sol = lp.solve(K, s)
                 else:
-                    sol = lp.solve_windowed(K, s, _window(K, centres, width), sigma)
+                    sol = lp.solve_windowed(K, s, free, sigma)
                 if sol is None:
                     continue
                 if sol.t > um * (1.0 + 1e-12):
