@@ -51,6 +51,8 @@ one).
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,6 +150,7 @@ class LimitLP:
         self.solves = 0
         self.infeasible_verdicts = 0  # LPs HiGHS found infeasible
         self.infeasible_method = ""  # the HiGHS method that gave the last such verdict
+        self.deadline = math.inf  # time.perf_counter() past which an LP stops (HiGHS time limit)
         self._kd: dict[int, KData] = {}
         self._rows: dict[int, list[set]] = {}  # generated rows inside runs, per K and block
         self._at_cache: dict = {}
@@ -194,10 +197,10 @@ class LimitLP:
 
         Returns None when the LP has no solution (``smooth``: the limits
         cannot be met with this parametrisation; ``scaled``: the runs and
-        free samples cannot reach the target), or when the rows inside runs,
-        added until the solution meets every limit at every sample, did not
-        settle within ``MAX_ROW_ROUNDS``.  Raises :class:`LPUndecided` when
-        HiGHS gives neither verdict with any method (never read as "infeasible").
+        free samples cannot reach the target).  Raises :class:`LPUndecided`
+        when HiGHS gives neither verdict with any method, or when the rows
+        inside runs, added until the solution meets every limit at every
+        sample, did not settle within ``MAX_ROW_ROUNDS`` (never read as "infeasible").
         """
         seg = seg if seg is not None else Segments.all_free(K)
         rows = self._rows.setdefault(K, [set() for _ in self.blocks])
@@ -206,9 +209,9 @@ class LimitLP:
             sol = self._solve_once(K, seg, mode, rows, t_fix)
             if sol is None or not self._add_violated_rows(sol, rows):
                 return sol
-        # rows inside runs still violated: not a restriction of the full problem
-        # (its t is no upper bound); the callers fall back to every sample free
-        return None
+        # rows inside runs still violated: not a restriction of the full problem (its t is no upper
+        # bound), and no verdict either: the callers fall back to every sample free, or step past K
+        raise LPUndecided(f"limited planner: limit rows at {K} samples did not settle in {MAX_ROW_ROUNDS} rounds")
 
     def _solve_once(self, K, seg, mode, extra, t_fix=None) -> LPSolution | None:
         self.solves += 1
@@ -420,19 +423,22 @@ class LimitLP:
         A_eq, b_eq = E.system(nv)
         A_ub, b_ub = U.system(nv)
         method = "highs-ipm" if F.size > IPM_SAMPLES and self.blocks else "highs"
-        kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=HIGHS_OPTIONS)
+        opts = dict(HIGHS_OPTIONS)
+        if math.isfinite(self.deadline):  # the planner's budget bounds every single LP too
+            opts["time_limit"] = max(0.5, self.deadline - time.perf_counter())
+        kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=opts)
         res = linprog(cost, method=method, **kw)
         tried = [f"{method}: {res.message}"]
         if res.status not in (0, 2):
             # neither optimal nor infeasible (e.g. "HiGHS Status 0: Not Set", an iteration or time limit):
             # ask the other methods, then the dual simplex without presolve (it sees the rows unscaled)
-            for alt, opts in (
-                ("highs-ds" if method != "highs-ds" else "highs-ipm", HIGHS_OPTIONS),
-                ("highs-ipm" if method == "highs" else "highs-ds", HIGHS_OPTIONS),
-                ("highs-ds", {**HIGHS_OPTIONS, "presolve": False}),
+            for alt, presolve in (
+                ("highs-ds" if method != "highs-ds" else "highs-ipm", True),
+                ("highs-ipm" if method == "highs" else "highs-ds", True),
+                ("highs-ds", False),
             ):
-                res = linprog(cost, method=alt, **{**kw, "options": opts})
-                tried.append(f"{alt}{'' if opts is HIGHS_OPTIONS else ' (no presolve)'}: {res.message}")
+                res = linprog(cost, method=alt, **{**kw, "options": {**opts, "presolve": presolve}})
+                tried.append(f"{alt}{'' if presolve else ' (no presolve)'}: {res.message}")
                 if res.status in (0, 2):
                     method = alt
                     break

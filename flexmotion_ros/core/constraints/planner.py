@@ -63,6 +63,8 @@ from .structure import map_runs, solution_runs
 
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64
+#: Planning-time budget (s): past it the planner stops and says so (SolverError), it claims nothing.
+TIME_BUDGET_S = 30.0
 #: ... or this many samples more, whichever is larger (short moves).
 CAP_EXTRA = 1000
 #: Beyond this many times the unlimited count, the search first tries to prove the limits impossible.
@@ -159,6 +161,8 @@ class _Level:
         self.t: dict[int, float] = {}
         self.own = False  # the reference is this level's own solution
         self.undecided: set[int] = set()  # counts where HiGHS gave no verdict with any method
+        self.reachable: int | None = None  # from this count on the target is proved reachable (final rate)
+        self.deadline = math.inf  # time.perf_counter() after which the search gives up (says so)
 
     @property
     def full(self) -> bool:
@@ -173,6 +177,8 @@ class _Level:
     def probe(self, K: int) -> float:
         """``t(K)``: an upper bound on ``t*(K)`` (exact with every sample free); ``inf`` if HiGHS gave no verdict."""
         if K not in self.t:
+            if time.perf_counter() > self.deadline:
+                raise _OutOfTime(K)
             if K > self.K_cap:
                 raise _BeyondCap(K)
             sol = None
@@ -188,6 +194,10 @@ class _Level:
             if sol is None:  # no windows, or still none: every sample free (seconds at 1 kHz)
                 try:
                     sol = self.lp.solve(K)
+                    if sol is None and self.reachable is not None and K >= self.reachable:
+                        # K samples reach the target (the unlimited optimum, held at rest, proves it):
+                        # "infeasible" here is numerical, not a verdict
+                        raise LPUndecided(f"limited planner: no LP verdict at {K} samples")
                 except LPUndecided:
                     # no verdict: this K says nothing (never "infeasible"); the search steps past it
                     self.t[K] = math.inf
@@ -247,6 +257,12 @@ class _Level:
         widths: list[int] = []
         for _ in range(200):
             self.probe(K)
+            if len(self.undecided) >= 3 and not any(v <= 1.0 for v in self.t.values()):
+                raise SolverError(
+                    f"limited planner: HiGHS gave no verdict at {len(self.undecided)} sample counts "
+                    f"({', '.join(str(k) for k in sorted(self.undecided)[:4])}); the limits are not proved "
+                    "impossible; nothing is returned"
+                )
             feas = [k for k, v in self.t.items() if v <= 1.0 and k > lo]
             hi = min(feas) if feas else None
             below = max([lo] + [k for k, v in self.t.items() if v > 1.0 and (hi is None or k < hi)])
@@ -297,6 +313,10 @@ class _Level:
             if smooth is not None:
                 sol = smooth
         return solution_runs(sol, self.lp.um, self.lp.slew), K
+
+
+class _OutOfTime(Exception):
+    """The planning-time budget ran out (no claim about any count)."""
 
 
 class _BeyondCap(Exception):
@@ -357,7 +377,7 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
-    if K > FULL_LP_MAX_SAMPLES:
+    if K > FULL_LP_MAX_SAMPLES or time.perf_counter() > level.deadline:
         return None  # the full LP would take many seconds: K stays unproved (reported, not hidden)
     try:
         full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
@@ -418,9 +438,12 @@ def _accept(level: _Level, K: int):
     lp = level.lp
     seg = level.sols[K].segments
     for _attempt in ("this structure", "every sample free"):
-        sol = lp.solve(K, seg, mode="smooth")
-        if sol is None and seg.n_free < K:
-            sol = lp.solve(K, mode="smooth")
+        try:
+            sol = lp.solve(K, seg, mode="smooth")
+            if sol is None and seg.n_free < K:
+                sol = lp.solve(K, mode="smooth")
+        except LPUndecided:
+            sol = None
         if sol is None:
             return None
         u = lp.exact_commands(sol.u)
@@ -447,10 +470,21 @@ def plan_limited_zoh(
     FlexmotionError
         A limit out of range, or an initial state already outside a limit.
     GoalError
-        No move within ``MAX_FACTOR`` times the unlimited sample count meets the limits.
+        The limits are proved impossible (broken within the first samples whatever the command).
     SolverError
-        No sequence passed the exact checks.
+        No sequence passed the exact checks, none was found up to ``MAX_FACTOR`` times the unlimited
+        count, or the ``TIME_BUDGET_S`` planning budget ran out; none of these claims the limits impossible.
     """
+    try:
+        return _plan_limited(problem, rate_hz, limits, unlimited)
+    except _OutOfTime as exc:
+        raise SolverError(
+            f"limited planner: no plan within the {TIME_BUDGET_S:g} s planning budget (the search reached "
+            f"{exc.args[0]} samples); the limits are not proved impossible; nothing is returned"
+        ) from exc
+
+
+def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimited: SampledProfile | None):
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
@@ -477,6 +511,7 @@ def plan_limited_zoh(
             time.perf_counter() - t0,
         )
     proved = K0 if unlimited.minimal else unlimited.lower_bound_samples  # every K < proved is infeasible
+    deadline = t0 + TIME_BUDGET_S
     K_cap = max(K0 * MAX_FACTOR, K0 + CAP_EXTRA)
     K_soft = max(K0 * SOFT_FACTOR, K0 + CAP_EXTRA // 10)  # beyond this, first try to prove the limits impossible
     T_star = unlimited.continuous.duration if unlimited.continuous is not None else (proved - 1) * dt
@@ -490,6 +525,8 @@ def plan_limited_zoh(
         final = r == rate
         width = 0 if ref is None else MAP_WIDTH * COARSE_FACTOR + 2
         level = _Level(problem, r, limits, round(K_soft * r / rate) + 10, lp if final else None, ref, width)
+        level.reachable = K0 if final else None
+        level.deadline = level.lp.deadline = deadline
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
         guess = math.ceil(_extrapolate(times, 1.0 / r) * r - 1e-9) if times else lo + 1
         try:

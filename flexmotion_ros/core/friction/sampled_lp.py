@@ -44,7 +44,7 @@ from .contact import ClosedForm
 LP_TIME_LIMIT_S = 1.0
 LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
 #: Rounds of sign-row generation in a windowed LP.
-SIGN_ROUNDS = 12
+SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
 MU_MAX = 1e12
 #: Fixed-point iterations of the velocity-sign pattern.

@@ -135,6 +135,8 @@ class FrictionProfile:
     continuation_steps: int = 0
     solve_time_s: float = 0.0
     method: str = "time_optimal_friction"
+    #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
+    sample_period: float | None = None
 
     @property
     def certified(self) -> bool:
@@ -167,7 +169,9 @@ class FrictionProfile:
         }
 
 
-def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> FrictionProfile:
+def plan_time_optimal_friction(
+    problem: MoveProblem, coulomb_force: float, rate_hz: float | None = None
+) -> FrictionProfile:
     """Bang-bang move to rest under rigid-body Coulomb friction, checked by exact simulation.
 
     Parameters
@@ -176,6 +180,9 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
         Model, bound, initial state, target (``None``: final position free).
     coulomb_force : float
         ``F`` in ``[0, u_max)`` (N).
+    rate_hz : float, optional
+        Command rate (Hz) of the sampled plan to come: the coarse sampled moves use a whole number of
+        its periods, so an ``exact_sampled`` result is itself a command sequence at this rate.
 
     Returns
     -------
@@ -242,7 +249,10 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
     for K_c in STRUCTURE_SAMPLES:
         sol = None
         for _ in range(3):  # a move much slower than the frictionless one: coarser samples
-            lp = FrictionLP(problem, F, T_ref / K_c)
+            dt_c = T_ref / K_c
+            if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
+                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+            lp = FrictionLP(problem, F, dt_c)
             sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
             if sol is not None:
                 break
@@ -366,6 +376,7 @@ def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int,
         lower_bound=lb,
         continuation_steps=steps,
         solve_time_s=time.perf_counter() - t0,
+        sample_period=dt,
     )
 
 

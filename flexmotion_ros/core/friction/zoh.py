@@ -37,6 +37,8 @@ from .time_optimal import (
 WIDTHS = (4, 16, 64, None)
 #: Every sample free only up to this many samples (above, the windows must do).
 FULL_SAMPLES = 4000
+#: Planning-time budget of the sampled search (s): past it, it stops and says so.
+TIME_BUDGET_S = 20.0
 #: Sample counts are searched up to this many times ``ceil(T / dt)`` (plus ``EXTRA_SAMPLES``).
 MAX_FACTOR = 4
 EXTRA_SAMPLES = 200
@@ -62,6 +64,17 @@ def _directions(check: FrictionSystem, problem: MoveProblem, continuous: Frictio
         return 1, np.empty(0)
     turns = [t0 for (t0, m), (_, prev) in zip(moving[1:], moving[:-1]) if m != prev]
     return int(moving[0][1]), np.array(turns)
+
+
+def _held_samples(continuous: FrictionProfile, dt: float) -> np.ndarray | None:
+    """The commands at period ``dt`` of an ``exact_sampled`` move whose period is a whole multiple of ``dt``."""
+    h = continuous.sample_period
+    if continuous.certificate.status != FrictionStatus.SAMPLED or h is None:
+        return None
+    m = round(h / dt)
+    if m < 1 or abs(m * dt - h) > 1e-9 * h:
+        return None
+    return np.repeat(np.asarray(continuous.levels, float), m)
 
 
 def _window(K: int, centres: np.ndarray, width: int) -> np.ndarray:
@@ -116,7 +129,7 @@ def plan_time_optimal_friction_zoh(
     problem = move.problem
     F = check_coulomb_force(coulomb_force, problem.u_max)
     if continuous is None:
-        continuous = plan_time_optimal_friction(problem, F)
+        continuous = plan_time_optimal_friction(problem, F, rate)
     T = continuous.duration
     model, um = problem.model, problem.u_max
     if T == 0.0:
@@ -144,6 +157,11 @@ def plan_time_optimal_friction_zoh(
         """``(u, states)`` of a sequence of ``K`` samples that passes the exact check, or None."""
         if K in found:
             return found[K]
+        if time.perf_counter() - t0 > TIME_BUDGET_S:
+            raise SolverError(
+                f"sampled friction planner: no sequence within the {TIME_BUDGET_S:g} s planning budget (tried up to "
+                f"{max(found, default=K)} samples; {reasons[-1] if reasons else 'no feasible linear program'})"
+            )
         found[K] = None
         stretch = K * dt / T
         mids = (np.arange(K) + 0.5) * dt / stretch
@@ -187,6 +205,14 @@ def plan_time_optimal_friction_zoh(
                 reasons.append(f"exact friction simulation misses the target at {K} samples (relative {rel:.2e})")
         return None
 
+    held = _held_samples(continuous, dt)
+    if held is not None:
+        # an exact sampled continuous move on a whole number of command periods: its commands, each
+        # held that many periods, are the same input (checked below like any other)
+        u = held
+        states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states
+        found[u.size] = (u, states)
+        K0 = u.size
     # up from ceil(T / dt) in growing steps, then back down by bisection to the fewest that works
     K, step, below = K0, 1, K0 - 1
     while attempt(K) is None:
