@@ -24,6 +24,7 @@ any length meets them (a ``K``-sample move held at rest after it would).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from scipy.optimize import linprog
@@ -126,12 +127,16 @@ def _build(
     }
 
 
-def _ask(kw: dict, both: bool = False) -> tuple[bool | None, str]:
-    """HiGHS's verdict; with ``both``, "infeasible" needs the interior point AND the dual simplex method."""
+def _ask(kw: dict, both: bool = False, deadline: float = math.inf) -> tuple[bool | None, str]:
+    """HiGHS's verdict; with ``both``, "infeasible" needs the interior point AND the dual simplex method.
+
+    Past ``deadline`` (``time.perf_counter()``) HiGHS stops: no verdict (None), never "infeasible".
+    """
     nv = kw["bounds"].shape[0]
     said = []
     for method in METHODS:
-        res = linprog(np.zeros(nv), method=method, **kw)
+        opts = {} if not math.isfinite(deadline) else {"time_limit": max(0.5, deadline - time.perf_counter())}
+        res = linprog(np.zeros(nv), method=method, options=opts, **kw)
         if res.status == 0:
             return True, method
         if res.status == 2:
@@ -144,13 +149,19 @@ def _ask(kw: dict, both: bool = False) -> tuple[bool | None, str]:
 
 
 def feasible(
-    problem: MoveProblem, K: int, dt: float, limits: Limits, scale: float = 1.0, cuts: list[Cut] | None = None
+    problem: MoveProblem,
+    K: int,
+    dt: float,
+    limits: Limits,
+    scale: float = 1.0,
+    cuts: list[Cut] | None = None,
+    deadline: float = math.inf,
 ) -> tuple[bool | None, str]:
     """Does a ``K``-sample sequence reach rest at the target with every limit (times ``scale``) held?
 
     Returns ``(verdict, method)``: ``verdict`` None when HiGHS decided neither way.
     """
-    return _ask(_build(problem, K, dt, limits, scale, list(cuts or ()), True))
+    return _ask(_build(problem, K, dt, limits, scale, list(cuts or ()), True), deadline=deadline)
 
 
 def prefix_feasible(
