@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linprog
+from scipy.signal import lfilter
 from scipy.sparse import coo_matrix
 
 from ..model.boundary import MoveProblem
@@ -121,11 +122,11 @@ class FrictionLP:
 
     def velocities(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Rigid-body velocity at instants ``0..K`` (the exact recursion, friction of pattern ``s``)."""
-        v = np.empty(u.size + 1)
+        drive = self.gv * np.asarray(u, float) - (self.F * self.fv) * np.asarray(s, float)
+        v = np.empty(drive.size + 1)
         v[0] = self.x0[1]
-        ev, gv, ff = self.ev, self.gv, self.F * self.fv
-        for k in range(u.size):
-            v[k + 1] = ev * v[k] + gv * u[k] - ff * s[k]
+        # v_{k+1} = ev v_k + drive_k: a first-order recursion (C loop), the initial value as its state
+        v[1:] = lfilter([1.0], [1.0, -self.ev], drive, zi=[self.ev * v[0]])[0]
         return v
 
     def solve(
