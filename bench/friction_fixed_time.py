@@ -41,9 +41,9 @@ from flexmotion_ros.core import (
     rest_to_rest,
 )
 from flexmotion_ros.core.errors import SolverError
-from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.friction.time_optimal import plan_time_optimal_friction
 from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
+from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.sampled.fixed_time import plan_fixed_time_zoh
 from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 

@@ -64,7 +64,7 @@ from .structure import map_runs, solution_runs
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64
 #: Planning-time budget (s): past it the planner stops and says so (SolverError), it claims nothing.
-TIME_BUDGET_S = 30.0
+TIME_BUDGET_S = 60.0
 #: ... or this many samples more, whichever is larger (short moves).
 CAP_EXTRA = 1000
 #: Beyond this many times the unlimited count, the search first tries to prove the limits impossible.
@@ -402,7 +402,7 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
 FULL_LP_MAX_SAMPLES = 3000
 #: Lifting window multipliers to every sample is one sparse LU of about ``K n`` unknowns: at 42,000
 #: (4,200 samples, 10 states) it takes 10 s; above this the lifted bound is not tried.
-LIFT_MAX_UNKNOWNS = 20000
+LIFT_MAX_UNKNOWNS = 30000
 #: Times the search may re-anchor its windows on an exact optimum when they proved misleading.
 MAX_ANCHORS = 2
 #: The prefix of the impossibility proof covers at most this many samples.
