@@ -232,6 +232,11 @@ def plan_time_optimal_friction(
             solve_time_s=time.perf_counter() - t0,
         )
     scale, template = _frictionless_scales(problem, base)
+    direction = 1.0 if (problem.target if problem.target is not None else 0.0) >= problem.x0[0] else -1.0
+
+    def monotone(tau):
+        return np.full(np.shape(tau), direction)
+
     best: FrictionProfile | None = None
     # 1. the fast path: continuation in F from the frictionless optimum (bounded)
     cont = continue_in_friction(problem, base, F, scale)
@@ -254,6 +259,8 @@ def plan_time_optimal_friction(
                 dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
             lp = FrictionLP(problem, F, dt_c)
             sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
+            if sol is None:  # the frictionless move's reversals may not suit: a monotone move
+                sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
             if sol is not None:
                 break
             T_ref *= 4.0
