@@ -15,18 +15,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model.boundary import MoveProblem
 from ..simulation.exact import PiecewiseConstant
 from ..simulation.modal_response import ModalResponse
 from ..time_optimal.switching import isolate_roots, sample_grid
 from ..tolerances import HAMILTONIAN_TOL, SWITCH_RESIDUAL_TOL
-
-if TYPE_CHECKING:
-    from .extremal import Extremal
-
+from .extremal import Extremal, newton_solve
 
 CLAIM = (
     "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
@@ -238,3 +235,24 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
         claim=CLAIM,
         message="; ".join(reasons) or "ok",
     )
+
+
+#: Re-solves with the switches moved to the sign changes of B^T lambda.
+CONSISTENCY_ROUNDS = 4
+
+
+def consistent_switches(
+    problem: MoveProblem, ext: Extremal, y: np.ndarray, F: float, scale: np.ndarray, budget: list[int] | None = None
+) -> tuple[Extremal, np.ndarray] | None:
+    """Move the switches to the sign changes of ``B^T lambda`` and re-solve until they agree; None if not."""
+    for _ in range(CONSISTENCY_ROUNDS):
+        zeros, sign0 = switching_zeros(ext, y)
+        if zeros is None:
+            return None
+        if same_switches(zeros, ext.unpack(y)[0], y[ext.L]):
+            return ext, y
+        levels = problem.u_max * sign0 * (1.0 - 2.0 * (np.arange(zeros.size + 1) % 2))
+        ok, ext, y = newton_solve(problem, levels, F, scale, np.concatenate([zeros, y[ext.L :]]), budget=budget)
+        if not ok:
+            return None
+    return None

@@ -17,8 +17,8 @@ import numpy as np
 
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile
-from .extremal import Extremal
-from .structure import consistent_switches, newton_solve
+from .certificate import consistent_switches
+from .extremal import Extremal, newton_solve
 
 #: Newton iterations per solve (a step that needs more is too long: halve it).
 MAX_ITER = 12

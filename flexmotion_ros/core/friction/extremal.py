@@ -153,3 +153,29 @@ class Extremal:
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))
         return rn <= NEWTON_TOL, y, rn
+
+
+def sigma_scale(ext: Extremal, y: np.ndarray) -> float:
+    """Scale of ``B^T lambda`` (fixed during one Newton solve)."""
+    lam = ext.unpack(y)[2]
+    return max(float(np.max(np.abs(lam))) * float(np.max(np.abs(ext.sys.B))), 1e-300)
+
+
+def newton_solve(
+    problem: MoveProblem,
+    levels: np.ndarray,
+    F: float,
+    scale: np.ndarray,
+    y: np.ndarray,
+    max_iter: int = 20,
+    budget: list[int] | None = None,
+) -> tuple[bool, Extremal, np.ndarray]:
+    """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
+
+    ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place).
+    """
+    ext = Extremal(problem, levels, F, scale)
+    ext.budget = budget
+    ext.sig_scale = sigma_scale(ext, y)
+    ok, y_new, _ = ext.newton(y, max_iter=max_iter)
+    return ok, ext, y_new

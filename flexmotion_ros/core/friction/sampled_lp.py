@@ -36,6 +36,7 @@ from scipy.signal import lfilter
 from scipy.sparse import coo_matrix
 
 from ..model.boundary import MoveProblem
+from ..sampled.lp_tools import least_norm_correction
 from ..tolerances import HIGHS_OPTIONS
 from .contact import ClosedForm
 
@@ -270,8 +271,6 @@ class FrictionLP:
         """``sol.u`` corrected (least-norm, within ``u_max``) so that the arrival holds to rounding AND the
         velocity stays exactly zero where the LP has it at zero (reversal instants, stick arcs): there the
         true system reverses or sticks exactly as the pattern assumes.  None if the correction does not fit."""
-        from ..sampled.zoh import correct_exactly
-
         K = sol.K
         _, _, _, pw = self.kdata(K)
         v = self.velocities(sol.u, sol.pattern)
@@ -282,7 +281,7 @@ class FrictionLP:
         D = np.where(lag >= 0, self.gv * pw[np.maximum(lag, 0)], 0.0)  # v_j = a_j + D_j u
         G = np.column_stack([sol.G, D.T])
         w = np.concatenate([sol.w, -a[js]])
-        return correct_exactly(G, w, sol.u, self.problem.u_max)
+        return least_norm_correction(G, w, sol.u, self.problem.u_max)
 
     def pattern_of(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
         """The velocity sign on every interval of the move ``u`` made with friction pattern ``s``

@@ -20,11 +20,8 @@ import numpy as np
 
 from ..model.boundary import MoveProblem
 from ..simulation.exact import PiecewiseConstant
-from .certificate import same_switches, switching_zeros
-from .extremal import Extremal
-
-#: Re-solves with the switches moved to the sign changes of B^T lambda.
-CONSISTENCY_ROUNDS = 4
+from .certificate import consistent_switches
+from .extremal import Extremal, newton_solve
 
 
 def bang_bang_guess(u: np.ndarray, dt: float, u_max: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -86,49 +83,6 @@ def costate_guess(ext: Extremal, t_sw: np.ndarray, T: float) -> np.ndarray | Non
     rhs[-1] = -1.0
     lam, *_ = np.linalg.lstsq(M, rhs, rcond=None)
     return lam if np.all(np.isfinite(lam)) else None
-
-
-def sigma_scale(ext: Extremal, y: np.ndarray) -> float:
-    """Scale of ``B^T lambda`` (fixed during one Newton solve)."""
-    lam = ext.unpack(y)[2]
-    return max(float(np.max(np.abs(lam))) * float(np.max(np.abs(ext.sys.B))), 1e-300)
-
-
-def newton_solve(
-    problem: MoveProblem,
-    levels: np.ndarray,
-    F: float,
-    scale: np.ndarray,
-    y: np.ndarray,
-    max_iter: int = 20,
-    budget: list[int] | None = None,
-) -> tuple[bool, Extremal, np.ndarray]:
-    """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
-
-    ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place).
-    """
-    ext = Extremal(problem, levels, F, scale)
-    ext.budget = budget
-    ext.sig_scale = sigma_scale(ext, y)
-    ok, y_new, _ = ext.newton(y, max_iter=max_iter)
-    return ok, ext, y_new
-
-
-def consistent_switches(
-    problem: MoveProblem, ext: Extremal, y: np.ndarray, F: float, scale: np.ndarray, budget: list[int] | None = None
-) -> tuple[Extremal, np.ndarray] | None:
-    """Move the switches to the sign changes of ``B^T lambda`` and re-solve until they agree; None if not."""
-    for _ in range(CONSISTENCY_ROUNDS):
-        zeros, sign0 = switching_zeros(ext, y)
-        if zeros is None:
-            return None
-        if same_switches(zeros, ext.unpack(y)[0], y[ext.L]):
-            return ext, y
-        levels = problem.u_max * sign0 * (1.0 - 2.0 * (np.arange(zeros.size + 1) % 2))
-        ok, ext, y = newton_solve(problem, levels, F, scale, np.concatenate([zeros, y[ext.L :]]), budget=budget)
-        if not ok:
-            return None
-    return None
 
 
 def has_stick_arcs(u: np.ndarray, F: float, peak: float) -> bool:
