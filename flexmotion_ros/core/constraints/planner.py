@@ -64,7 +64,7 @@ from .structure import map_runs, solution_runs
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64
 #: Planning-time budget (s): past it the planner stops and says so (SolverError), it claims nothing.
-TIME_BUDGET_S = 60.0
+TIME_BUDGET_S = 120.0
 #: ... or this many samples more, whichever is larger (short moves).
 CAP_EXTRA = 1000
 #: Beyond this many times the unlimited count, the search first tries to prove the limits impossible.
