@@ -21,10 +21,7 @@ demo: $(STAMP)
 	$(VENV)/bin/flexmotion demo --config config/wie_bernstein.yaml --goal 1.0 --plot demo.png
 
 test: $(STAMP)
-	# the tests that start nodes as subprocesses run in a pytest process of their own: after the
-	# in-process ROS suite, a new subprocess participant was not discovered (see the closing note)
-	$(PY) -m pytest -q test/ros/test_safety.py test/test_packaging.py
-	$(PY) -m pytest -q --ignore=test/ros/test_safety.py --ignore=test/test_packaging.py
+	$(PY) -m pytest -q
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
 

@@ -26,7 +26,7 @@ setup(
     extras_require={
         # ROS 2 Jazzy from PyPI, for machines without a ROS distro
         "ros": ["ros-jazzy-rclpy", "ros-jazzy-common-interfaces", "ros-jazzy-rmw-fastrtps-cpp"],
-        "test": ["pytest", "hypothesis", "colcon-common-extensions", "ruff"],
+        "test": ["pytest", "hypothesis", "colcon-common-extensions", "ruff", "control"],
         "bench": ["casadi", "ruckig"],
     },
     zip_safe=True,

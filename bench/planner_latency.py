@@ -311,6 +311,8 @@ def main() -> None:
                 cas = None
             else:
                 cas = casadi_direct(model, gamma, args.casadi_n)
+                if n <= 3:
+                    aims.setdefault("ipopt_small", []).append(cas["solve_s"])
             row = (
                 f"{n:>5} {gamma:>8.4g} {prof.duration:>10.6f} {1e3 * np.median(t_cont):>11.2f} "
                 f"{1e3 * np.percentile(t_cont, 95):>8.2f} {err:>8.1e} {delta:>8.0e} "
@@ -346,7 +348,16 @@ def main() -> None:
     for n, med, T in aims["zoh_5s"]:
         print(
             f"# aim 3: 1 kHz ZOH plan of the {T:.2f} s move, {n} mode(s): {med * 1e3:.1f} ms median -> "
-            f"{'MET' if med < 0.05 else 'NOT MET'}"
+            f"{'MET' if med < 0.05 else 'NOT MET'} (issue 2: < 50 ms); "
+            f"{'MET' if med < 0.01 else 'NOT MET'} (issue 15: < 10 ms)"
+        )
+    if small and aims.get("ipopt_small"):
+        med = float(np.median(small))
+        ipopt = float(np.median(aims["ipopt_small"]))
+        print(
+            f"# aim (issue 15): certified continuous plan, 1-3 modes, median < 1 ms and >= 100x faster than IPOPT "
+            f"in this run: {med * 1e3:.2f} ms vs IPOPT median {ipopt * 1e3:.0f} ms, {ipopt / med:.0f}x -> "
+            f"{'MET' if med < 1e-3 and ipopt / med >= 100.0 else 'NOT MET'}"
         )
 
 

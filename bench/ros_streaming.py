@@ -238,6 +238,7 @@ def run_config(args, priority: int) -> dict:
         }
     finally:
         ex.shutdown(timeout_sec=1.0)
+        spin.join(timeout=5.0)  # the executor thread ends before the node goes (else: terminate called)
         node.destroy_node()
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)

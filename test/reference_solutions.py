@@ -286,3 +286,58 @@ def proved_optimality(problem: MoveProblem, profile) -> float:
     gap = lower_bound_gap(problem, (1.0 - OPT_DELTA) * T, None)
     safe_note(f"LP weak-duality gap at (1 - {OPT_DELTA:g}) T*: {gap:.3e}")
     return OPT_DELTA if gap > 0.0 else math.inf
+
+
+# ------------------------------------------- own propagation, no package code
+def expm_pieces(problem: MoveProblem, durations, levels) -> np.ndarray:
+    """States (absolute) after each held level, by ``scipy.linalg.expm`` of ``[[A, B], [0, 0]]``.
+
+    Shares nothing with the package's simulation: one exponential per
+    distinct duration, then exact products.  Row 0 is ``problem.x0``.
+    """
+    A, B = problem.model.A(), problem.model.B()
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n] = B
+    cache: dict[float, np.ndarray] = {}
+    x = np.append(np.asarray(problem.x0, float), 0.0)
+    out = [x[:n].copy()]
+    for h, u in zip(durations, levels):
+        h = float(h)
+        if h not in cache:
+            cache[h] = expm(M * h)
+        x[n] = u
+        x = cache[h] @ x
+        out.append(x[:n].copy())
+    return np.array(out)
+
+
+def sampled_final_error(problem: MoveProblem, commands, dt: float, reach: bool = False) -> float:
+    """Final-state error of a command sequence relative to each state's excursion (own expm).
+
+    ``reach=True``: relative to the larger of the excursion and what the
+    actuator could do in the move's time (:func:`one_sample_reach` over the
+    whole move), the planners' definition of the error scale, computed here
+    independently.  For moves that use a millionth of the actuator (1e-15 m)
+    the trajectory's own excursion is at the rounding level of the commands.
+    """
+    u = np.asarray(commands, float)
+    X = expm_pieces(problem, np.full(u.size, dt), u)
+    dev, scale = deviation_from_target(problem, X)
+    if reach:
+        scale = np.maximum(scale, one_sample_reach(problem, max(u.size, 1) * dt))
+    return float(np.max(np.abs(dev[-1]) / scale))
+
+
+def one_sample_reach(problem: MoveProblem, dt: float) -> np.ndarray:
+    """How far a full-bound input moves each state within one sample ``dt`` (own expm, 17 instants)."""
+    A, B = problem.model.A(), problem.model.B()
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n] = B
+    reach = np.zeros(n)
+    for tau in np.linspace(dt / 16.0, dt, 16):
+        reach = np.maximum(reach, np.abs(expm(M * tau)[:n, n]) * problem.u_max)
+    return reach if problem.target is not None else reach[1:]

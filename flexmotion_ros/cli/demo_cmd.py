@@ -17,6 +17,11 @@ demo) and the plant's ``joint_states`` publisher (its
 topic).  Lockstep samples lost anyway are reported at once, with the counts
 (:class:`_LossCheck`), instead of waiting out ``--timeout``.
 
+Several inputs (a parameter file with ``model.inputs``, e.g. ``config/gantry.yaml``):
+``--goal 3,2`` gives one target per rigid body (sent as ``pose.position.x, y, z``
+of ``~/move``), the commands are recorded as rows of ``m`` and the summary and
+the figure show every axis, every drive and every sway mode (:mod:`.multi_demo`).
+
 Isolation: unless ``ROS_DOMAIN_ID`` is set, the demo picks a random domain
 (1..100) with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` for itself and its
 nodes, all in a namespace of its own.  rclpy is imported only when the demo
@@ -40,8 +45,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.config import load_config, read_parameter_file
 from ..core.errors import ConfigError, GoalError
+from ..core.multi_input.config import MultiPlannerConfig
+from ..core.multi_input.dispatch import load_any_config
+from ..core.parameter_file import read_parameter_file
+from . import multi_demo
+from .multi_plan import numbers
 from .shipped import DEFAULT_CONFIG, find_shipped, share_directories
 
 
@@ -54,7 +63,11 @@ def default_config() -> str | None:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="closed loop over ROS 2: planner + simulated plant, one move, summary and plot")
     p.add_argument("--config", default=None, help="ROS 2 parameter file (default: config/wie_bernstein.yaml)")
-    p.add_argument("--goal", type=float, default=1.0, help="target position (m or rad), from rest at 0 (default 1.0)")
+    p.add_argument(
+        "--goal",
+        default="1.0",
+        help="target position (m or rad), from rest at 0 (default 1.0); several rigid bodies: one each, e.g. 3,2",
+    )
     p.add_argument("--plot", default="demo.png", help="PNG to write (default demo.png; '' for none)")
     p.add_argument("--rate", type=float, default=None, help="command rate (Hz; default: the file's rate_hz)")
     p.add_argument(
@@ -84,10 +97,21 @@ def run(args: argparse.Namespace) -> int:
     if config_path is None:
         searched = ", ".join(str(d / DEFAULT_CONFIG) for d in share_directories())
         raise ConfigError("config", f"no default parameter file found (searched {searched}); give --config FILE")
-    config = load_config(config_path)  # refuse a bad file before starting anything
-    if not math.isfinite(args.goal):
-        raise GoalError("goal", f"must be finite, got {args.goal}")
-    config.check_goal(args.goal)
+    config = load_any_config(config_path)  # refuse a bad file before starting anything
+    goal = numbers(args.goal, "goal")
+    if isinstance(config, MultiPlannerConfig):
+        args.goal = config.check_goal(goal)
+        if config.model.k > len(multi_demo.POSE_AXES):
+            raise GoalError(
+                "goal", f"the demo sends goals as pose x, y, z: at most 3 rigid bodies, got {config.model.k}"
+            )
+    else:
+        if len(goal) != 1:
+            raise GoalError("goal", f"this single-input model takes one target, got {len(goal)}: {goal}")
+        args.goal = goal[0]
+        if not math.isfinite(args.goal):
+            raise GoalError("goal", f"must be finite, got {args.goal}")
+        config.check_goal(args.goal)
     rate = float(args.rate or config.rate_hz)
     if not (0.0 < rate <= 1e6):
         raise ConfigError("rate_hz", f"must be in (0, 1e6] Hz, got {rate}")
@@ -249,15 +273,16 @@ class _Demo:
         status: dict = {}
         plant_status: dict = {}
 
+        multi = isinstance(self.config, MultiPlannerConfig)
+
         def on_command(msg) -> None:
-            with lock:
-                commands.append((time.time(), messages.command_value(msg)))
+            with lock:  # several inputs: the whole row of m values
+                commands.append((time.time(), list(msg.data) if multi else messages.command_value(msg)))
 
         def on_state(msg) -> None:
+            effort = msg.effort[0] if len(msg.effort) else math.nan  # several inputs: no effort per joint
             with lock:
-                states.append(
-                    (messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), msg.effort[0])
-                )
+                states.append((messages.from_time(msg.header.stamp), messages.state_from_joint_state(msg), effort))
 
         def on_diag(msg) -> None:
             st = messages.diagnostic_values(msg, DIAGNOSTIC_NAME, f"{self.namespace}/flexmotion_planner")
@@ -326,7 +351,8 @@ class _Demo:
             with lock:
                 published_before = int(plant_status.get("joint_states_published", 0))
             req = GetPlan.Request()
-            req.goal.pose.position.x = float(self.args.goal)
+            for axis, target in zip(multi_demo.POSE_AXES, np.atleast_1d(self.args.goal)):
+                setattr(req.goal.pose.position, axis, float(target))
             t_req = time.time()
             future = move.call_async(req)
             wait(future.done, "the ~/move answer")
@@ -337,6 +363,11 @@ class _Demo:
             K = len(plan.poses) - 1
             planned_t = np.array([messages.from_time(p.header.stamp) for p in plan.poses])
             planned_p = np.array([p.pose.position.x for p in plan.poses])
+            if multi:
+                k = self.config.model.k
+                planned_p = np.array(
+                    [[getattr(p.pose.position, a) for a in multi_demo.POSE_AXES[:k]] for p in plan.poses]
+                )
             wait(lambda: len(commands) >= K + 1, f"{K + 1} commands")
             if self.args.realtime:
                 # every command integrated (from its arrival time), then watch it stand still
@@ -361,6 +392,8 @@ class _Demo:
         with lock:
             cmds, sts, diag = list(commands), list(states), dict(status)
             diag["plant"] = dict(plant_status)
+        if multi:
+            return multi_demo.report(self, t_req, cmds, sts, diag, K)
         return self._report(t_req, cmds, sts, diag, planned_t, planned_p, K)
 
     # --------------------------------------------------------------- report

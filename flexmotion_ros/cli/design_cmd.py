@@ -13,7 +13,6 @@ import json
 import math
 import sys
 
-from ..core.config import read_parameter_file
 from ..core.design.optimize import optimize_design, write_design
 from ..core.design.problem import (
     RobustnessRequirement,
@@ -22,6 +21,7 @@ from ..core.design.problem import (
 )
 from ..core.design.space import PARAMETER_RANGES, DesignParameter
 from ..core.errors import InputError
+from ..core.parameter_file import read_parameter_file
 from ..core.parameters import check_parameters
 
 

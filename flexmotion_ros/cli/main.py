@@ -14,14 +14,15 @@ import os
 import sys
 
 from ..core.errors import FlexmotionError
-from . import compare_cmd, demo_cmd, design_cmd, model_cmd, plan_cmd, shaper_cmd
+from . import compare_cmd, demo_cmd, design_cmd, excite_cmd, identify_cmd, model_cmd, plan_cmd, shaper_cmd
 
 #: Modules that provide sub-commands, in help order.
-COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd)
+COMMAND_MODULES = (plan_cmd, model_cmd, design_cmd, shaper_cmd, compare_cmd, demo_cmd, excite_cmd, identify_cmd)
 
 
 class _NegativeNumber:
-    """Matches every negative number ``float()`` reads (``-5.03e-05``, ``-1E3``, ``-.5``, ``-inf``).
+    """Matches every negative number ``float()`` reads (``-5.03e-05``, ``-1E3``, ``-.5``, ``-inf``),
+    and a comma-separated list of numbers that starts with one (``--goal -3.0,2.0``: one per rigid body).
 
     argparse's own pattern (``-1``, ``-1.5`` only) takes ``-5.03e-05`` for an
     option and fails with "expected one argument"; every parser of the
@@ -32,7 +33,8 @@ class _NegativeNumber:
         if not text.startswith("-") or "_" in text:
             return False
         try:
-            float(text)
+            for part in text.split(","):
+                float(part)
         except ValueError:
             return False
         return True

@@ -1,4 +1,4 @@
-"""``flexmotion plan``: plan one move offline from a parameter file."""
+"""``flexmotion plan``: plan one move offline from a parameter file (one input or several, :mod:`.multi_plan`)."""
 
 from __future__ import annotations
 
@@ -9,19 +9,31 @@ import time
 
 import numpy as np
 
-from ..core.config import config_from_parameters, read_parameter_file
 from ..core.errors import ConfigError, GoalError
-from ..core.methods.table import plan_move
 from ..core.model.boundary import motion_to_rest, rest_to_rest, state_to_rest
 from ..core.model.modal_model import check_positive
+from ..core.multi_input.config import MultiPlannerConfig
+from ..core.multi_input.dispatch import check_budgets, config_from_any, move_problem
+from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
+from ..core.parameter_file import read_parameter_file
 from ..core.parameters import check_parameters, parse_parameter_value
+from . import multi_plan
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="plan a move from rest (or from a velocity) and print it")
     p.add_argument("--config", required=True, help="ROS 2 parameter file (model, u_max, rate_hz, ...)")
-    p.add_argument("--goal", type=float, help="target position (m or rad); the move starts at rest at 0")
+    p.add_argument(
+        "--goal",
+        help="target position (m or rad); several rigid bodies: one each, e.g. 3.0,2.0; the move starts at rest at 0",
+    )
     p.add_argument("--initial-velocity", type=float, dest="initial_velocity", help="initial rigid-body velocity")
+    p.add_argument(
+        "--initial-state",
+        dest="initial_state",
+        help="the whole start state, comma-separated, in the state order [p1, v1, ..., pk, vk, q1, q1', ...] "
+        "(moving and vibrating); without --goal the move stops with the final positions free",
+    )
     p.add_argument("--rate", type=float, help="also plan the exact zero-order-hold sequence at this rate (Hz)")
     p.add_argument("--method", help="profile type (overrides the file's 'method')")
     p.add_argument("--robust-order", type=int, dest="robust_order", help="derivative order for robust methods")
@@ -55,7 +67,7 @@ def config_from_args(args: argparse.Namespace):
             raise ConfigError("--option", f"expected NAME=VALUE, got {item!r}")
         params[name] = parse_parameter_value(value, name)
     check_parameters(params)
-    return config_from_parameters(params)
+    return config_from_any(params)
 
 
 def problem_from_args(config, goal: float | None, initial_velocity: float | None):
@@ -77,13 +89,45 @@ def problem_from_args(config, goal: float | None, initial_velocity: float | None
     return state_to_rest(model, um, x0, goal)
 
 
+def _problem(config, args: argparse.Namespace):
+    """The move of ``--goal`` (one value, or one per rigid body), ``--initial-state`` / ``--initial-velocity``."""
+    goal = multi_plan.numbers(args.goal, "goal")
+    x0 = multi_plan.initial_state(config, multi_plan.numbers(getattr(args, "initial_state", None), "initial_state"))
+    multi = isinstance(config, MultiPlannerConfig)
+    if x0 is not None and args.initial_velocity is not None:
+        raise GoalError("initial_state", "give --initial-state or --initial-velocity, not both")
+    if goal is not None:
+        if multi:
+            goal = config.check_goal(goal)
+        elif len(goal) != 1:
+            raise GoalError("goal", f"this single-input model takes one target, got {len(goal)}: {goal}")
+        else:
+            goal = goal[0]
+    if x0 is None and not multi:
+        return problem_from_args(config, goal, args.initial_velocity)
+    if args.initial_velocity is not None:
+        raise GoalError("initial_velocity", "a multi-input model takes the whole start state: --initial-state")
+    if goal is None and x0 is None:
+        raise GoalError("goal", "give --goal (one target per rigid body), --initial-state, or both")
+    if x0 is None:
+        x0 = config.model.rest_state()
+    elif not multi and goal is not None:
+        config.check_goal(goal)
+    return move_problem(config, x0, goal)
+
+
 def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
-    problem = problem_from_args(config, args.goal, args.initial_velocity)
+    problem = _problem(config, args)
     rate = None if args.rate is None else check_positive("rate_hz", args.rate, "Hz")
+    multi = isinstance(config, MultiPlannerConfig)
+    if rate is not None or multi:  # the node's budgets: refused before planning, in microseconds
+        check_budgets(config, problem, rate)
     t0 = time.perf_counter()
     result = plan_move(config, problem, rate_hz=rate)
     plan_time = time.perf_counter() - t0
+    if multi:
+        return _run_multi(args, config, result, plan_time)
     out = result.summary()
     if result.sampled is not None:
         # the sampled plan's own solve time, and the whole call (what a node waits for before streaming)
@@ -98,6 +142,20 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out))
         return 0
     print(_text(out))
+    return 0
+
+
+def _run_multi(args: argparse.Namespace, config: MultiPlannerConfig, result, plan_time: float) -> int:
+    """The multi-input JSON (levels: rows of m; commands: K rows of m) or text."""
+    out = result.summary()
+    if result.sampled is not None:
+        out["plan_time_s"] = float(plan_time)
+    if args.goal is None:
+        multi_plan.stop_positions(config, out, None if result.sampled is None else result.sampled.states)
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(multi_plan.text(out, config.model.inputs, config.model.rigid_bodies))
     return 0
 
 

@@ -14,11 +14,9 @@ The same file serves ``flexmotion plan --config FILE`` and the nodes
         u_max: 1.0
         rate_hz: 1000.0
 
-Nested keys are ROS parameter names with dots (``model.b0``).  This module
-reads and writes that format without ROS, typing every value by rcl's own
-rules (:func:`~flexmotion_ros.core.parameters.rcl_scalar`: ``1`` is an
-integer, ``1.0`` a double) so that ``flexmotion plan`` and the nodes see the
-same types; :func:`load_config` then refuses unknown names and wrong types
+Nested keys are ROS parameter names with dots (``model.b0``).  The file is
+read and written by :mod:`.parameter_file` (rcl's typing rules, without ROS);
+:func:`load_config` then refuses unknown names and wrong types
 (:func:`~flexmotion_ros.core.parameters.check_parameters`, the check the nodes
 run on their start-up parameters too) before building the configuration.
 """
@@ -31,20 +29,28 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
+import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, GoalError
+from .model.boundary import MoveProblem
 from .model.modal_model import ModalModel, check_positive
+from .parameter_file import (
+    dump_parameters,
+    flatten,
+    read_parameter_file,
+    read_parameter_sections,
+    unflatten,
+)
 from .parameters import (
     KNOWN_PREFIXES,
     MAX_MOVE_DURATION_S,
+    MAX_MOVE_SAMPLES,
     NODE_NAMES,
     check_parameters,
     check_required_options,
-    rcl_scalar,
-    ros_type,
 )
 from .shaping.shapers import SHAPERS
+from .time_optimal.rigid_body import rigid_time
 
 #: The planning methods, in the order of :data:`~flexmotion_ros.core.methods.METHODS` (which
 #: holds their planners and checks that the two lists agree): the default first, then every shaper.
@@ -70,6 +76,7 @@ DEFAULTS: dict[str, Any] = {
     "limits.position_min": -math.inf,
     "limits.position_max": math.inf,
     "max_move_duration_s": MAX_MOVE_DURATION_S,
+    "max_move_samples": MAX_MOVE_SAMPLES,
 }
 
 
@@ -98,6 +105,10 @@ class PlannerConfig:
     max_move_duration_s : float
         Longest move a goal may ask for (s, > 0): a goal whose rigid-body
         minimum time exceeds it is refused before planning.
+    max_move_samples : int
+        Most command samples a goal's plan may need at ``rate_hz`` (>= 1):
+        a goal whose rigid-body minimum time exceeds it is refused before
+        planning (:func:`check_move_samples`, by the nodes and ``flexmotion plan``).
     options : dict
         Method-specific parameters (dotted names), validated by their method.
     """
@@ -110,6 +121,7 @@ class PlannerConfig:
     position_max: float = math.inf
     options: dict = field(default_factory=dict)
     max_move_duration_s: float = MAX_MOVE_DURATION_S
+    max_move_samples: int = MAX_MOVE_SAMPLES
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "u_max", check_positive("u_max", self.u_max))
@@ -131,12 +143,14 @@ class PlannerConfig:
                 "max_move_duration_s", f"must be a finite duration > 0 s, got {self.max_move_duration_s!r}"
             )
         object.__setattr__(self, "max_move_duration_s", budget)
+        samples = self.max_move_samples
+        if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+            raise ConfigError("max_move_samples", f"must be an integer >= 1, got {samples!r}")
+        object.__setattr__(self, "max_move_samples", int(samples))
         check_required_options(self.method, self.options)
 
     def check_goal(self, target: float) -> float:
         """Return ``target`` if finite and inside the position limits, else raise."""
-        from .errors import GoalError
-
         try:
             t = float(target)
         except (TypeError, ValueError):
@@ -162,6 +176,7 @@ class PlannerConfig:
                 "limits.position_min": self.position_min,
                 "limits.position_max": self.position_max,
                 "max_move_duration_s": self.max_move_duration_s,
+                "max_move_samples": self.max_move_samples,
             }
         )
         p.update(self.options)
@@ -205,28 +220,65 @@ def check_rate_hz(value: Any, parameter: str = "rate_hz") -> float:
     return x
 
 
-def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    """``{"model": {"b0": 1}}`` -> ``{"model.b0": 1}``."""
-    out: dict[str, Any] = {}
-    for key, value in tree.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            out.update(flatten(value, name + "."))
-        else:
-            out[name] = value
-    return out
+def check_sampling(model: ModalModel, rate_hz: float) -> None:
+    """Refuse a mode at or above the Nyquist frequency ``pi x rate_hz`` (rad/s) of the command.
+
+    A command held for ``1 / rate_hz`` s cannot resolve such a mode: it aliases
+    (at ``omega = 2 pi k rate_hz`` it is not controllable at all) and an exact
+    plan for it is ill-conditioned (issue 16: 1e5 rad/s at 1 kHz planned for
+    36.9 s).  A physical fact, so a parameter set with it is refused when it
+    is set, naming the mode and the rate it would need.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``model.omega[i]``, the Nyquist frequency and the rate needed.
+    """
+    nyquist = math.pi * float(rate_hz)
+    for i, w in enumerate(model.omega):
+        if w >= nyquist:
+            raise ConfigError(
+                f"model.omega[{i}]",
+                f"{w:g} rad/s is at or above the Nyquist frequency pi x rate_hz = {nyquist:.6g} rad/s of a "
+                f"{rate_hz:g} Hz command, which cannot resolve it; raise rate_hz above {w / math.pi:.6g} Hz "
+                "or leave the mode out",
+            )
 
 
-def unflatten(params: Mapping[str, Any]) -> dict[str, Any]:
-    """Inverse of :func:`flatten`."""
-    tree: dict[str, Any] = {}
-    for name, value in params.items():
-        node = tree
-        parts = name.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    return tree
+def check_move_samples(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> int:
+    """Refuse, in microseconds, a goal whose plan would need more than ``config.max_move_samples`` samples.
+
+    The count is a lower bound: the rigid body's own minimum time (closed
+    form) times the rate, so only goals that certainly exceed the budget
+    are refused (issue 16: a goal of 1e6 was a 47-minute move planned in 8.6 s).
+
+    Parameters
+    ----------
+    config : PlannerConfig
+    problem : MoveProblem
+    rate_hz : float, optional
+        The plan's rate (Hz); None: ``config.rate_hz``.
+
+    Returns
+    -------
+    int
+        The lower bound on the samples.
+
+    Raises
+    ------
+    GoalError
+        Naming ``goal`` and the budget ``max_move_samples``.
+    """
+    rate = float(rate_hz) if rate_hz else config.rate_hz
+    T = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
+    samples = T * rate
+    if not samples <= config.max_move_samples:
+        raise GoalError(
+            "goal",
+            f"the move needs at least {samples:.4g} samples at {rate:g} Hz ({T:.4g} s, rigid-body minimum time), "
+            f"over the budget max_move_samples = {config.max_move_samples}; move less far or raise max_move_samples",
+        )
+    return math.ceil(samples)
 
 
 def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
@@ -259,6 +311,7 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         and not k.startswith(NOT_OPTION_PREFIXES)
         and not (isinstance(v, (list, tuple)) and not v)  # an empty list is unset, as in rcl
     }
+    check_sampling(model, check_rate_hz(p["rate_hz"]))
     return PlannerConfig(
         model=model,
         u_max=p["u_max"],
@@ -268,118 +321,8 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
         position_max=p["limits.position_max"],
         options=options,
         max_move_duration_s=p["max_move_duration_s"],
+        max_move_samples=p["max_move_samples"],
     )
-
-
-def _yaml_error(path: Path, exc: yaml.YAMLError, parameter: str) -> ConfigError:
-    mark = getattr(exc, "problem_mark", None)
-    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-    return ConfigError(parameter, f"{path} is not valid YAML{where}: {problem}")
-
-
-def _typed_tree(node: yaml.Node, name: str, path: Path, parameter: str) -> Any:
-    """A composed YAML node as rcl reads it: mappings nest, scalars and sequences are typed."""
-    line = node.start_mark.line + 1
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, Any] = {}
-        for key, value in node.value:
-            if not isinstance(key, yaml.ScalarNode):
-                raise ConfigError(parameter, f"{path}: a key must be a name (line {key.start_mark.line + 1})")
-            out[key.value] = _typed_tree(value, f"{name}.{key.value}" if name else key.value, path, parameter)
-        return out if out else None  # 'x: {}' declares x with no value in rcl
-    if isinstance(node, yaml.SequenceNode):
-        items: list[Any] = []
-        stack = list(node.value)
-        while stack:  # rcl flattens nested sequences
-            item = stack.pop(0)
-            if isinstance(item, yaml.SequenceNode):
-                stack[:0] = list(item.value)
-                continue
-            if not isinstance(item, yaml.ScalarNode):
-                raise ConfigError(name, f"{path}: a list holds values only (line {item.start_mark.line + 1})")
-            items.append(_scalar(item, name, path))
-        try:
-            ros_type(items)
-        except TypeError:
-            kinds = ", ".join(dict.fromkeys(str(ros_type(v).value) for v in items))
-            raise ConfigError(
-                name,
-                f"{path} line {line}: list items must all have one type (ROS arrays are homogeneous; "
-                f"write doubles as 2.0, not 2), got {kinds}",
-            ) from None
-        return items
-    return _scalar(node, name, path)
-
-
-def _scalar(node: yaml.Node, name: str, path: Path) -> Any:
-    quoted = node.style in ("'", '"')
-    if not quoted and node.value == "":
-        raise ConfigError(name, f"{path}: no value at line {node.start_mark.line + 1}")
-    return rcl_scalar(node.value, quoted)
-
-
-def read_parameter_sections(path: str | Path, parameter: str = "config") -> dict[str, dict[str, Any]]:
-    """Every section of a ROS 2 parameter file: ``{node name: flat typed ros__parameters}``.
-
-    Values are typed by rcl's rules (:func:`~flexmotion_ros.core.parameters.rcl_scalar`);
-    a value rcl refuses (no value, a mixed list), a YAML syntax error or an
-    unreadable file raises :class:`ConfigError` naming ``parameter``, the
-    file and, for syntax errors, the line and column.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ConfigError(parameter, f"file not found: {path}") from None
-    except IsADirectoryError:
-        raise ConfigError(parameter, f"{path} is a directory, not a parameter file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(parameter, f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        raise _yaml_error(path, exc, parameter) from None
-    if not isinstance(root, yaml.MappingNode):
-        raise ConfigError(parameter, f"{path}: expected a mapping of node names to ros__parameters")
-    sections: dict[str, dict[str, Any]] = {}
-    for key, value in root.value:
-        if not isinstance(key, yaml.ScalarNode) or not isinstance(value, yaml.MappingNode):
-            raise ConfigError(parameter, f"{path}: expected a mapping of node names to ros__parameters")
-        for sub_key, sub in value.value:
-            if isinstance(sub_key, yaml.ScalarNode) and sub_key.value == "ros__parameters":
-                if not isinstance(sub, yaml.MappingNode):
-                    raise ConfigError(
-                        parameter,
-                        f"{path}: 'ros__parameters' of '{key.value}' must be a mapping of parameter names to values "
-                        f"(line {sub.start_mark.line + 1})",
-                    )
-                tree = _typed_tree(sub, "", path, parameter)
-                sections.setdefault(key.value, {}).update(flatten(tree or {}))
-    return sections
-
-
-def read_parameter_file(path: str | Path, node_name: str | None = None, parameter: str = "config") -> dict[str, Any]:
-    """Flat parameters from a ROS 2 parameter YAML file, typed by rcl's rules.
-
-    Takes the ``ros__parameters`` of ``/**`` (wildcard) and, if given, of
-    ``node_name`` (which override the wildcard), as ROS does.
-    """
-    path = Path(path)
-    data = read_parameter_sections(path, parameter)
-    params: dict[str, Any] = {}
-    keys = ["/**", "**"]
-    if node_name:
-        bare = node_name.lstrip("/")
-        keys += [bare, "/" + bare]  # ROS matches 'node' and '/node' alike
-    found = False
-    for key in keys:
-        if key in data:
-            params.update(data[key])
-            found = True
-    if not found:
-        raise ConfigError(parameter, f"{path}: no '/**: ros__parameters:' section")
-    return params
 
 
 def load_config(path: str | Path, node_name: str | None = "flexmotion_planner") -> PlannerConfig:
@@ -389,50 +332,36 @@ def load_config(path: str | Path, node_name: str | None = "flexmotion_planner") 
     return config_from_parameters(params)
 
 
-class _Dumper(yaml.SafeDumper):
-    pass
-
-
-def _float_repr(dumper: yaml.SafeDumper, value: float):
-    # ROS parameter files need doubles to look like doubles: 2.0, not 2
-    if math.isinf(value):
-        text = ".inf" if value > 0 else "-.inf"
-    elif math.isnan(value):
-        text = ".nan"
-    else:
-        text = repr(float(value))
-        if "e" in text and "." not in text.split("e")[0]:
-            mant, exp = text.split("e")
-            text = f"{mant}.0e{exp}"
-    return dumper.represent_scalar("tag:yaml.org,2002:float", text)
-
-
-_Dumper.add_representer(float, _float_repr)
-
-
-def dump_parameters(params: Mapping[str, Any], header: str = "") -> str:
-    """A ROS 2 parameter file (``/**: ros__parameters:``) for flat parameters."""
-    clean = {
-        k: (float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in _INT_PARAMS else v)
-        for k, v in params.items()
-    }
-    clean = {k: ([float(x) for x in v] if isinstance(v, (list, tuple)) else v) for k, v in clean.items()}
-    body = yaml.dump(
-        {"/**": {"ros__parameters": unflatten(clean)}}, Dumper=_Dumper, sort_keys=False, default_flow_style=None
-    )
-    return (header + body) if header else body
-
-
-#: Parameters that are integers, not doubles.
-_INT_PARAMS = {"robust_order", "design.force_on", "fuel_curve.points"}
-
-
 def write_config(path: str | Path, config: PlannerConfig, header: str = "") -> None:
-    """Write ``config`` as a ROS 2 parameter file (finite limits only, the move budget if not the default)."""
+    """Write ``config`` as a ROS 2 parameter file (finite limits only, the move budgets if not the defaults)."""
     params = config.to_parameters()
     for key in ("limits.position_min", "limits.position_max"):
         if not math.isfinite(params[key]):
             del params[key]
     if params["max_move_duration_s"] == MAX_MOVE_DURATION_S:
         del params["max_move_duration_s"]
+    if params["max_move_samples"] == MAX_MOVE_SAMPLES:
+        del params["max_move_samples"]
     Path(path).write_text(dump_parameters(params, header))
+
+
+#: Re-exported: the parameter file's reader and writer live in :mod:`.parameter_file`.
+__all__ = [
+    "DEFAULTS",
+    "MAX_RATE_HZ",
+    "METHOD_NAMES",
+    "NOT_OPTIONS",
+    "NOT_OPTION_PREFIXES",
+    "PlannerConfig",
+    "check_move_samples",
+    "check_rate_hz",
+    "check_sampling",
+    "config_from_parameters",
+    "dump_parameters",
+    "flatten",
+    "load_config",
+    "read_parameter_file",
+    "read_parameter_sections",
+    "unflatten",
+    "write_config",
+]

@@ -38,7 +38,7 @@ import enum
 import math
 import re
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -86,6 +86,13 @@ class ParameterInfo:
         Methods that read it (method options only).
     required_by : tuple of str
         Methods that cannot plan without it (method options only).
+    choices : tuple of str
+        The only values a string parameter may take (empty: any); checked
+        here, so that ``flexmotion plan`` and the nodes refuse the same file.
+    alternatives : tuple of ParameterType
+        Other ROS types accepted (``model.b0``, ``model.c``, ``u_max``: a double
+        for one input, a double array for several; the nodes declare them with
+        dynamic typing).
     """
 
     name: str
@@ -94,6 +101,8 @@ class ParameterInfo:
     description: str
     methods: tuple[str, ...] = ()
     required_by: tuple[str, ...] = ()
+    choices: tuple[str, ...] = ()
+    alternatives: tuple[ParameterType, ...] = ()
 
 
 def _p(name: str, type_: ParameterType, allowed: str, description: str, **kw: Any) -> ParameterInfo:
@@ -105,15 +114,42 @@ DA, SA = ParameterType.DOUBLE_ARRAY, ParameterType.STRING_ARRAY
 
 #: Default of ``max_move_duration_s`` (s): the longest move a goal may ask for (one hour).
 MAX_MOVE_DURATION_S = 3600.0
+#: Default of ``max_move_samples``: the most command samples a goal's plan may need (100 s at 1 kHz,
+#: 500 s at 200 Hz; a plan's arrays are then ~10 MB and it plans in seconds, not minutes).
+MAX_MOVE_SAMPLES = 100_000
 
 #: The planner configuration (:class:`~flexmotion_ros.core.config.PlannerConfig`).
 CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
-    _p("model.b0", D, "non-zero, e.g. 1/kg", "rigid-body input gain b0"),
-    _p("model.c", D, "1/s, <= 0", "rigid-body viscous term c"),
+    _p(
+        "model.b0",
+        D,
+        "non-zero, e.g. 1/kg; several inputs: k x m, row-major",
+        "rigid-body input gain b0",
+        alternatives=(DA,),
+    ),
+    _p("model.c", D, "1/s, <= 0; several inputs: one per rigid body", "rigid-body viscous term c", alternatives=(DA,)),
     _p("model.omega", DA, "rad/s, each > 0", "undamped modal frequencies"),
     _p("model.zeta", DA, "each in [0, 1)", "modal damping ratios"),
-    _p("model.b", DA, "each non-zero", "modal input gains"),
-    _p("u_max", D, "N or the model's input unit, > 0", "actuator bound |u| <= u_max"),
+    _p("model.b", DA, "each non-zero; several inputs: N x m, row-major", "modal input gains"),
+    _p(
+        "u_max",
+        D,
+        "N or the model's input unit, > 0; several inputs: one per input (or one for all)",
+        "actuator bound |u| <= u_max",
+        alternatives=(DA,),
+    ),
+    # several inputs (issue 12): model.inputs makes a file multi-input (core/multi_input/parse.py)
+    _p("model.inputs", SA, "one name per input (m >= 1)", "the actuated joints (inputs) of a multi-input model"),
+    _p("model.rigid_bodies", SA, "one name per rigid body (k)", "rigid-body coordinates of a multi-input model"),
+    _p("model.mode_names", SA, "one name per mode", "names of the modes of a multi-input model"),
+    _p(
+        "sync",
+        S,
+        "'time', 'none' or 'phase'",
+        "multi-input time_optimal: how the inputs that do not set the time arrive",
+        choices=("time", "none", "phase"),
+    ),
+    _p("fuel_weights", DA, "one per input, each > 0", "multi-input min_fuel: weights c_i of eq. 2.38"),
     _p("rate_hz", D, "Hz, in (0, 1e6]", "command rate"),
     _p("method", S, "a method name", "planning method"),
     _p("limits.position_min", D, "m or rad; -.inf: no limit", "lowest goal position"),
@@ -123,6 +159,13 @@ CONFIG_PARAMETERS: tuple[ParameterInfo, ...] = (
         D,
         f"s, > 0, default {MAX_MOVE_DURATION_S:g}",
         "longest move a goal may ask for (rigid-body minimum time); longer goals are refused up front",
+    ),
+    _p(
+        "max_move_samples",
+        I,
+        f"integer >= 1, default {MAX_MOVE_SAMPLES}",
+        "most command samples a goal's plan may need at rate_hz (rigid-body minimum time x rate_hz); "
+        "larger goals are refused up front",
     ),
 )
 
@@ -189,17 +232,32 @@ METHOD_OPTIONS: tuple[ParameterInfo, ...] = (
 PLANNER_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("publish_hold_when_idle", B, "true or false", "keep publishing the hold while idle"),
     _p("stream_priority", I, "integer 0..99", "SCHED_FIFO priority of the stream thread"),
-    _p("initial_position", D, "m or rad", "position assumed at start-up"),
+    _p(
+        "initial_position",
+        D,
+        "m or rad; several rigid bodies: one each",
+        "position assumed at start-up",
+        alternatives=(DA,),
+    ),
     _p("replan_lead_s", D, "s, in [0, 60]", "smallest look-ahead of a preemption"),
     _p("max_trajectory_points", I, "integer >= 2", "most points in a published path"),
     _p("frame_id", S, "a frame name", "frame_id of the answered paths"),
     _p("diagnostics_period_s", D, "s, in [0.01, 3600]", "period of /diagnostics"),
     _p("joint_name", S, "a joint name", "the joint this planner moves"),
-    _p("state.source", S, "'measured' or 'assumed'", "start state of a move from idle"),
+    _p("joint_names", SA, "one name per input", "multi-input: the joints of 'commands', in order"),
+    _p(
+        "state.source", S, "'measured' or 'assumed'", "start state of a move from idle", choices=("measured", "assumed")
+    ),
     _p("state.topic", S, "a topic name", "topic of the measured state"),
     _p("state.mode_joint_names", SA, "one joint name per mode", "joints holding the modal coordinates"),
     _p("state.timeout_s", D, "s, in (0, 3600]", "age after which a measured state is stale"),
-    _p("trajectory.early_arrival", S, "'refuse' or 'optimum'", "a trajectory goal arriving before T*"),
+    _p(
+        "trajectory.early_arrival",
+        S,
+        "'refuse' or 'optimum'",
+        "a trajectory goal arriving before T*",
+        choices=("refuse", "optimum"),
+    ),
 )
 
 #: Parameters of ``flexmotion_plant`` (add new ones here).
@@ -210,8 +268,14 @@ PLANT_NODE_PARAMETERS: tuple[ParameterInfo, ...] = (
     _p("plant.omega_scale", DA, "each > 0", "model error: frequency ratios"),
     _p("plant.extra_zeta", DA, "each >= 0", "model error: added damping"),
     _p("plant.coulomb_force", D, "N, >= 0", "simulated Coulomb friction"),
-    _p("plant.apply_at", S, "'arrival' or 'send'", "when a command acts"),
-    _p("plant.initial_position", D, "m or rad", "initial rigid-body position"),
+    _p("plant.apply_at", S, "'arrival' or 'send'", "when a command acts", choices=("arrival", "send")),
+    _p(
+        "plant.initial_position",
+        D,
+        "m or rad; several rigid bodies: one each",
+        "initial rigid-body position",
+        alternatives=(DA,),
+    ),
     _p("plant.idle_state_period_s", D, "s, >= 0", "lockstep heartbeat period while idle"),
 )
 
@@ -261,14 +325,41 @@ def is_known(name: str, extra: Iterable[str] = ()) -> bool:
     return name in KNOWN or name in set(extra) or name.startswith(KNOWN_PREFIXES)
 
 
+#: How alike (difflib ratio) a mistyped name and a valid one must be for the valid one to be suggested.
+CLOSE_NAME_CUTOFF = 0.6
+
+
+def closest_name(name: str, valid: Iterable[str]) -> str | None:
+    """The valid name closest to a mistyped ``name`` (None if none is close): the one did-you-mean helper."""
+    match = difflib.get_close_matches(name, sorted(set(valid)), n=1, cutoff=CLOSE_NAME_CUTOFF)
+    return match[0] if match else None
+
+
+def closest_hint(name: str, valid: Iterable[str]) -> str:
+    """`` (closest: 'x')`` for a mistyped ``name``, or ``""`` if nothing is close."""
+    match = closest_name(name, valid)
+    return f" (closest: {match!r})" if match is not None else ""
+
+
 def check_name(name: str, extra: Iterable[str] = ()) -> None:
     """Raise :class:`ConfigError` for an unknown name, with the closest known one."""
     extra = set(extra)
     if is_known(name, extra):
         return
-    close = difflib.get_close_matches(name, sorted(set(KNOWN) | extra), n=1, cutoff=0.6)
-    hint = f"did you mean {close[0]}?" if close else "see flexmotion_ros/core/parameters.py for the known names"
+    close = closest_name(name, set(KNOWN) | extra)
+    hint = f"did you mean {close}?" if close else "see flexmotion_ros/core/parameters.py for the known names"
     raise ConfigError(name, f"unknown parameter; {hint}")
+
+
+def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
+    """``value`` as one of ``choices``, else :class:`ConfigError` naming ``name``, the choices and the closest.
+
+    The one text for a value outside its choices, in the command line and the nodes alike.
+    """
+    text = str(value)
+    if text not in choices:
+        raise ConfigError(name, f"must be one of {list(choices)}, got {value!r}{closest_hint(text, choices)}")
+    return text
 
 
 def ros_type(value: Any) -> ParameterType | None:
@@ -307,6 +398,8 @@ def _a(t: ParameterType) -> str:
 def check_type(name: str, value: Any) -> None:
     """Raise :class:`ConfigError` if ``value`` is not of the ROS type the registry declares for ``name``.
 
+    A string parameter with fixed :attr:`ParameterInfo.choices` must also be one of them.
+
     Unregistered names (``design.*``, ``qos_overrides.*``) and unset values pass.
     """
     info = KNOWN.get(name)
@@ -318,14 +411,19 @@ def check_type(name: str, value: Any) -> None:
         raise ConfigError(
             name, f"must be {_a(info.type)} ({info.allowed}); a list needs one type, got {value!r}"
         ) from None
-    if t is None or t == info.type:
+    if t is None:
+        return
+    if t == info.type or t in info.alternatives:
+        if info.choices:
+            check_choice(name, value, info.choices)
         return
     hint = ""
     if info.type == ParameterType.DOUBLE and t == ParameterType.INTEGER:
         hint = f": write {float(value)!r} (ROS types {value!r} as an integer)"
-    elif info.type == ParameterType.DOUBLE_ARRAY and t == ParameterType.INTEGER_ARRAY:
+    elif ParameterType.DOUBLE_ARRAY in (info.type, *info.alternatives) and t == ParameterType.INTEGER_ARRAY:
         hint = f": write {[float(v) for v in value]!r} (ROS types {value!r} as integers)"
-    raise ConfigError(name, f"must be {_a(info.type)} ({info.allowed}), got {_with_type(value)}{hint}")
+    kinds = " or ".join(_a(k) for k in (info.type, *info.alternatives))
+    raise ConfigError(name, f"must be {kinds} ({info.allowed}), got {_with_type(value)}{hint}")
 
 
 def check_parameters(params: Mapping[str, Any], extra: Iterable[str] = ()) -> None:

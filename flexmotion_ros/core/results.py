@@ -43,6 +43,12 @@ class SolverPath(_StrEnum):
     FULL = "full"
     #: Guess, switch-time Newton, certify (:mod:`~flexmotion_ros.core.time_optimal.structure_guess`).
     FAST = "fast"
+    #: A cluster of switches below rounding: switch times from the final state
+    #: alone, optimal within the gap to the proved lower bound.
+    CLUSTER = "cluster"
+    #: The bounded structure search (:mod:`~flexmotion_ros.core.time_optimal.fallbacks`: a
+    #: notch added to a known structure, final state alone), after the co-state iterations missed.
+    SEARCH = "search"
 
 
 class ProofKind(_StrEnum):

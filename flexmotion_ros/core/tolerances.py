@@ -23,6 +23,12 @@ FINAL_STATE_RTOL = 1e-9
 AT_REST = 1e-100
 
 
+#: A goal within this many units in the last place of the state (entry by
+#: entry) is the state itself: the difference is rounding (a position re-sent
+#: through a message), not a move.  ``methods.already_there``.
+AT_REST_ULPS = 4
+
+
 #: Refuse moves whose optimum needs more switches than this (an actuator far
 #: too weak for the state: a chattering move of thousands of periods).
 MAX_SWITCHES = 5000

@@ -12,13 +12,23 @@ and logging):
 * :mod:`.command_stream` -- :class:`CommandStream`, the absolute-deadline
   loop with the clock, the sleep and the publisher injected; every halt
   (stop, fault) sends the hold and says why (:class:`StreamHalt`);
+* :mod:`.requests` -- the planning thread's requests: the newest goal wins
+  (superseded goals counted), a stop cancels the goal being planned, plan-only
+  queries wait in a bounded queue;
 * :mod:`.measured_state` -- the machine's measured state: settings, the
   state vector from joint names, staleness;
-* :mod:`.summary` -- the plan's figures the planner reports.
+* :mod:`.summary` -- the plan's figures the planner reports;
+* :mod:`.trajectory` -- a plan as ``JointTrajectory`` data a
+  ``joint_trajectory_controller`` plays exactly, and the replacement after a splice;
+* :mod:`.jtc` -- the JTC's sampling rule and update loop, re-implemented;
+* :mod:`.replan` -- closed-loop replanning from an estimated state.
 """
 
 from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
+from .jtc import HeldPiece, TrajectoryPlayer, held_pieces, sample, started
 from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
+from .replan import ReplanOutcome, ReplanPoint, ReplanStatus, replan, replan_point
+from .requests import Request, RequestKind, RequestWorker
 from .splice import (
     DEFAULT_PLAN_TIME_S,
     PLAN_TIME_FACTOR,
@@ -35,6 +45,16 @@ from .splice import (
 )
 from .summary import plan_summary
 from .timeline import HOLD, Segment, predicted_state
+from .trajectory import (
+    Interpolation,
+    JointTrajectory,
+    ReceiverSettings,
+    SampleClock,
+    TrajectoryPoint,
+    encode,
+    timeline_commands,
+    timeline_trajectory,
+)
 
 __all__ = [
     "DEFAULT_PLAN_TIME_S",
@@ -47,6 +67,9 @@ __all__ = [
     "HaltCause",
     "MeasuredState",
     "ReadyStop",
+    "Request",
+    "RequestKind",
+    "RequestWorker",
     "StateSettings",
     "StateSource",
     "StopPreparer",
@@ -62,4 +85,23 @@ __all__ = [
     "splice_point",
     "state_settings",
     "state_vector",
+    # trajectory output, the JTC's rule, replanning (issue 14)
+    "HeldPiece",
+    "Interpolation",
+    "JointTrajectory",
+    "ReceiverSettings",
+    "ReplanOutcome",
+    "ReplanPoint",
+    "ReplanStatus",
+    "SampleClock",
+    "TrajectoryPlayer",
+    "TrajectoryPoint",
+    "encode",
+    "held_pieces",
+    "replan",
+    "replan_point",
+    "sample",
+    "started",
+    "timeline_commands",
+    "timeline_trajectory",
 ]

@@ -31,14 +31,13 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
-from .timeline import HOLD, Segment, predicted_state
+from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,9 +112,45 @@ class StreamHalt:
         elif self.last_value is None:
             what = "no command was ever sent"
         else:
-            what = f"the hold could NOT be sent ({self.hold_error}); the last command sent was {self.last_value:.9g}"
+            what = (
+                f"the hold could NOT be sent ({self.hold_error}); the last command sent was "
+                f"{command_text(self.last_value)}"
+            )
         cut = "; the move in progress was cut off" if self.interrupted else ""
         return f"command stream {self.cause.value} ({self.why}): {what}{cut}"
+
+
+class SampleRecord:
+    """The send time and lateness (s) of the last ``capacity`` samples, in a ring allocated once.
+
+    Constant memory from the start (2 x 8 bytes per sample; a deque of Python
+    floats grew the node by ~13 MB over its first 200,000 samples, which the
+    storm's RSS measured as a leak).  Appended by the stream thread, read by
+    others: a reader takes the count first, so it never sees a slot being
+    written except the newest.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        self._buf = np.zeros((max(1, int(capacity)), 2))
+        self._n = 0  # samples appended so far
+
+    def __len__(self) -> int:
+        return min(self._n, len(self._buf))
+
+    def append(self, time_s: float, late_s: float) -> None:
+        """Record one sample's send time and lateness (s)."""
+        row = self._buf[self._n % len(self._buf)]
+        row[0] = time_s
+        row[1] = late_s
+        self._n += 1
+
+    def last(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Send times and lateness of the ``n`` samples that end ``before`` samples ago (those still kept)."""
+        total, cap = self._n, len(self._buf)
+        end = max(0, total - max(0, before))
+        start = max(end - max(0, n), total - cap, 0)
+        rows = self._buf[np.arange(start, end) % cap]
+        return rows[:, 0].copy(), rows[:, 1].copy()
 
 
 class CommandStream:
@@ -171,14 +206,14 @@ class CommandStream:
         self._sleep = sleep
         self._cond = threading.Condition()
         self._queue: list[Segment] = []
+        self._version = 0  # segments installed: a plan from an older snapshot must not be installed
         self._k_next = 0
         self._t_anchor = clock()  # start() re-anchors: sample 0 is due when the stream starts
         self._k_anchor = 0
         self._stop = False
         self._stop_why = "stopped"
         self._thread: threading.Thread | None = None
-        self.sent_times: deque[float] = deque(maxlen=record)  # send times (s), all samples
-        self.lateness: deque[float] = deque(maxlen=record)  # send time - deadline (s)
+        self._record = SampleRecord(record)  # send times and lateness (s) of the last `record` samples
         self.samples_sent = 0
         self.priority = int(priority)
         self.priority_error: str | None = None
@@ -258,7 +293,7 @@ class CommandStream:
                 last = self.last_value
                 k = self._k_next
             hold_sent, error = False, ""
-            if last is not None and last != HOLD:
+            if last is not None and not is_hold(last):
                 try:
                     self._publish(HOLD)
                     hold_sent = True
@@ -271,7 +306,7 @@ class CommandStream:
             self.halted = StreamHalt(
                 cause=cause,
                 why=why,
-                held=last is None or last == HOLD or hold_sent,
+                held=last is None or is_hold(last) or hold_sent,
                 hold_sent=hold_sent,
                 interrupted=interrupted,
                 sample=k,
@@ -300,6 +335,21 @@ class CommandStream:
         """``(k_next, segments)``: the next index to send (samples) and the queued timeline."""
         with self._cond:
             return self._k_next, list(self._queue)
+
+    def versioned_snapshot(self) -> tuple[int, list[Segment], int]:
+        """``(k_next, segments, version)``: :meth:`snapshot` and the timeline's version, read together.
+
+        The version counts the segments installed (:meth:`start_now`, :meth:`splice`): a plan made from a
+        snapshot is still valid to install only while the version is unchanged (two planners, one timeline).
+        """
+        with self._cond:
+            return self._k_next, list(self._queue), self._version
+
+    @property
+    def version(self) -> int:
+        """How many segments have been installed (the timeline's version)."""
+        with self._cond:
+            return self._version
 
     @property
     def idle(self) -> bool:
@@ -335,6 +385,7 @@ class CommandStream:
             self._rebase_if_sleeping()
             segment.start = self._k_next
             self._queue.append(segment)
+            self._version += 1
             self._cond.notify_all()
             return segment.start
 
@@ -352,6 +403,7 @@ class CommandStream:
             self._queue = [s for s in self._queue if s.start < at]
             segment.start = at
             self._queue.append(segment)
+            self._version += 1
             self._cond.notify_all()
             return True
 
@@ -360,15 +412,26 @@ class CommandStream:
         with self._cond:
             return self._t_anchor + (k - self._k_anchor) * self.dt
 
-    def recent_timing(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Send times (clock s) and lateness (s) of the last ``n`` samples sent.
+    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
 
         Both empty for ``n <= 1`` (a single sample has no period); at most
-        the ``record`` samples kept.
+        the ``record`` samples kept.  ``before``: the samples sent since the
+        window ended (a report made later, off the stream thread).
         """
         if n <= 1:
             return np.empty(0), np.empty(0)
-        return np.array(list(self.sent_times)[-n:]), np.array(list(self.lateness)[-n:])
+        return self._record.last(n, before)
+
+    @property
+    def sent_times(self) -> np.ndarray:
+        """Send times (clock s) of the samples kept (at most ``record``), oldest first."""
+        return self._record.last(len(self._record))[0]
+
+    @property
+    def lateness(self) -> np.ndarray:
+        """Send time minus deadline (s) of the samples kept, oldest first."""
+        return self._record.last(len(self._record))[1]
 
     # --------------------------------------------------------------------- loop
     def step(self) -> StreamStep | None:
@@ -405,8 +468,7 @@ class CommandStream:
                     return None
                 self._publish(value)
                 self.last_value = value
-            self.sent_times.append(now)
-            self.lateness.append(now - deadline)
+            self._record.append(now, now - deadline)
             self.samples_sent += 1
         if started is not None:
             started.started_at = now
@@ -439,7 +501,7 @@ class CommandStream:
         if i < 0:  # waiting for a segment queued behind an ended one: at rest
             return idle_value, None, None
         if i < seg.samples:
-            return float(seg.commands[i]), (seg if i == 0 else None), None
+            return seg.command(i), (seg if i == 0 else None), None
         if i == seg.samples:  # the explicit hold that ends a move
             started = seg if seg.samples == 0 else None
             if len(q) == 1:

@@ -20,7 +20,6 @@ the machine's driver is alive, whatever the clock the messages are stamped with.
 
 from __future__ import annotations
 
-import difflib
 import enum
 import math
 import threading
@@ -33,6 +32,7 @@ import numpy as np
 
 from ..core.errors import ConfigError, GoalError
 from ..core.model.modal_model import ModalModel
+from ..core.parameters import check_choice, closest_hint
 from ..core.simulation.exact import modal_amplitudes
 
 
@@ -62,12 +62,6 @@ EXPECT_TOL = 1e-6
 def mode_names(n_modes: int) -> list[str]:
     """The plant's modal joint names ``mode_1`` ... ``mode_N``."""
     return [f"mode_{i + 1}" for i in range(n_modes)]
-
-
-def closest(name: str, valid: Sequence[str]) -> str:
-    """`` (closest: 'x')`` for a mistyped ``name``, or ``""`` if nothing is close."""
-    match = difflib.get_close_matches(name, list(valid), n=1, cutoff=0.5)
-    return f" (closest: {match[0]!r})" if match else ""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,11 +103,7 @@ class StateSettings:
 
 
 def _enum(enum_type: type[enum.Enum], name: str, value: Any) -> Any:
-    allowed = [e.value for e in enum_type]
-    try:
-        return enum_type(str(value))
-    except ValueError:
-        raise ConfigError(name, f"must be one of {allowed}, got {value!r}{closest(str(value), allowed)}") from None
+    return enum_type(check_choice(name, value, [e.value for e in enum_type]))
 
 
 def state_settings(values: Mapping[str, Any]) -> StateSettings:
@@ -165,7 +155,7 @@ def state_vector(
         if i is None:
             raise GoalError(
                 "joint_states",
-                f"joint {name!r} missing from the measured joint_states (has {list(index)}){closest(name, list(index))}",
+                f"joint {name!r} missing from the measured joint_states (has {list(index)}){closest_hint(name, index)}",
             )
         if i >= len(positions) or i >= len(velocities):
             raise GoalError("joint_states", f"joint {name!r} has no position and velocity in the measured message")
@@ -300,7 +290,6 @@ __all__ = [
     "StateSettings",
     "StateSource",
     "at_rest",
-    "closest",
     "mode_names",
     "state_settings",
     "state_vector",

@@ -30,18 +30,29 @@ from .timeline import Segment, predicted_state
 
 #: Planning time (s) assumed before any plan has been timed.
 DEFAULT_PLAN_TIME_S = 0.2
-#: The look-ahead covers this multiple of the slowest recent plan: planning times vary with the state.
+#: The look-ahead covers this multiple of a high quantile of the recent plans: planning times vary with the state.
 PLAN_TIME_FACTOR = 1.5
 #: ... plus this margin (s): the stream thread must see the splice before the sample is due.
 PLAN_TIME_MARGIN_S = 0.02
 #: How many recent plan times the look-ahead policy looks at.
-PLAN_TIME_WINDOW = 5
+PLAN_TIME_WINDOW = 20
+#: The slowest fraction of those it ignores (one 8.9 s stop plan among 20 ms goals is an outlier, not the norm).
+PLAN_TIME_OUTLIERS = 0.2
+#: The look-ahead (s) never exceeds this (unless ``replan_lead_s`` asks for more): a plan that overruns it is
+#: planned again from further ahead (:func:`longer_lead`), instead of every later preemption waiting that long.
+MAX_LEAD_S = 1.0
 #: Attempts to splice a preemption before giving up (the look-ahead doubles each time).
 SPLICE_ATTEMPTS = 4
 
 
 def lead_samples(plan_times: Iterable[float], replan_lead_s: float, rate_hz: float) -> int:
     """The look-ahead (samples) from the splice to the sample sent next.
+
+    Not hostage to an outlier: the estimate of the next plan's time is the
+    slowest recent plan once the slowest :data:`PLAN_TIME_OUTLIERS` of them
+    are set aside (with fewer than 5 plans, the slowest), and the look-ahead
+    is capped at :data:`MAX_LEAD_S`.  Issue 16: with the slowest of the last 5,
+    one 8.9 s stop plan made the next preemption splice 13.4 s after its request.
 
     Parameters
     ----------
@@ -56,11 +67,14 @@ def lead_samples(plan_times: Iterable[float], replan_lead_s: float, rate_hz: flo
     Returns
     -------
     int
-        ``ceil(max(replan_lead_s, 1.5 x slowest + 0.02 s) x rate_hz)``, at least 1 (samples).
+        ``ceil(max(replan_lead_s, min(MAX_LEAD_S, 1.5 x estimate + 0.02 s)) x rate_hz)``, at least 1 (samples).
     """
-    times = list(plan_times)
-    slowest = max(times) if times else DEFAULT_PLAN_TIME_S
-    lead_s = max(replan_lead_s, PLAN_TIME_FACTOR * slowest + PLAN_TIME_MARGIN_S)
+    times = sorted(plan_times)
+    if times:
+        estimate = times[len(times) - 1 - math.floor(PLAN_TIME_OUTLIERS * len(times))]
+    else:
+        estimate = DEFAULT_PLAN_TIME_S
+    lead_s = max(replan_lead_s, min(MAX_LEAD_S, PLAN_TIME_FACTOR * estimate + PLAN_TIME_MARGIN_S))
     return max(1, math.ceil(lead_s * rate_hz))
 
 
@@ -160,11 +174,17 @@ def ended_at_rest(timeline: Sequence[Segment], sample: int, idle: bool) -> bool:
 
 #: A ready stop is used only if its first sample is at least this many samples ahead (the stream thread must see it).
 STOP_MARGIN_SAMPLES = 2
-#: The preparer plans at most this fraction of the time (it sleeps the rest).  1: back to back while it
-#: is behind, so that checkpoints are one planning time apart (the stop latency is at most about that).
-STOP_PREP_DUTY = 1.0
+#: The preparer plans at most this fraction of the time (it sleeps the rest), so that the stream and the
+#: goals keep CPU for themselves; checkpoints are then ``plan time / duty`` apart (the stop latency is at
+#: most about that).  It does not plan at all while a goal is being planned (``paused``).
+STOP_PREP_DUTY = 0.5
 #: Ready stops kept ahead of the stream (then the preparer waits for the stream to pass one).
 STOP_AHEAD = 2
+#: A ready stop is taken if it starts within this many look-aheads of the request (a stop planned now would
+#: start one look-ahead on, if its plan kept to it); one further on (the preparer fell behind): planned now.
+READY_STOP_LEADS = 2
+#: While paused, the preparer looks again this often (s).
+PAUSE_POLL_S = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -256,6 +276,10 @@ class StopPreparer:
         does not for a timeline that already ends in a stop).
     rate_hz : float
         Stream rate (Hz).
+    paused : callable, optional
+        ``paused() -> bool``: while true (the node is planning a goal), plan
+        no stop: the goal gets the CPU, and a stop planned now would be for a
+        timeline about to change.
     """
 
     def __init__(
@@ -265,8 +289,10 @@ class StopPreparer:
         key: Callable[[], object],
         wanted: Callable[[Sequence[Segment]], bool],
         rate_hz: float,
+        paused: Callable[[], bool] | None = None,
     ) -> None:
         self._plan = plan
+        self._paused = paused if paused is not None else (lambda: False)
         self._snapshot = snapshot
         self._key = key
         self._wanted = wanted
@@ -282,6 +308,8 @@ class StopPreparer:
         #: Stops planned, and planned in vain (the checkpoint passed or the timeline changed meanwhile).
         self.planned = 0
         self.wasted = 0
+        #: Times the preparer found itself paused (a goal being planned).
+        self.pauses = 0
 
     def start(self) -> None:
         """Start the thread."""
@@ -312,13 +340,16 @@ class StopPreparer:
             self._kick = True
             self._cond.notify_all()
 
-    def take(self, wait_s: float = 0.0) -> ReadyStop | None:
+    def take(self, wait_s: float = 0.0, latest: int | None = None) -> ReadyStop | None:
         """Remove and return the earliest stop usable now (against the stream's snapshot); None if none.
 
         Parameters
         ----------
         wait_s : float
             If none is usable but one is being planned, wait up to this long (s) for it.
+        latest : int or None
+            The latest first sample worth taking (samples): a stop planned on demand would start there,
+            so a ready stop starting later is no gain (None: any).
         """
         key = self._key()
         end = time.monotonic() + wait_s
@@ -326,6 +357,8 @@ class StopPreparer:
             k_next, timeline = self._snapshot()
             with self._cond:
                 for i, stop in enumerate(self._ready):
+                    if latest is not None and stop.sample > latest:
+                        break  # earliest first: the others start later still
                     if ready_stop_usable(stop, timeline, k_next, key):
                         del self._ready[: i + 1]
                         return stop
@@ -365,6 +398,11 @@ class StopPreparer:
                 if not self._wait(None if not timeline else 0.05):
                     return
                 continue
+            if self._paused():  # a goal is being planned: look again shortly
+                self.pauses += 1
+                if not self._wait(PAUSE_POLL_S):
+                    return
+                continue
             expected = self._expected_plan_time()
             at, spacing = next_checkpoint(k_next, ready[-1].sample if ready else None, expected, self.rate_hz)
             if len(ready) >= STOP_AHEAD or at >= timeline[-1].end:
@@ -398,9 +436,13 @@ class StopPreparer:
 
 __all__ = [
     "DEFAULT_PLAN_TIME_S",
+    "MAX_LEAD_S",
+    "PAUSE_POLL_S",
     "PLAN_TIME_FACTOR",
     "PLAN_TIME_MARGIN_S",
+    "PLAN_TIME_OUTLIERS",
     "PLAN_TIME_WINDOW",
+    "READY_STOP_LEADS",
     "SPLICE_ATTEMPTS",
     "STOP_AHEAD",
     "STOP_MARGIN_SAMPLES",

@@ -14,8 +14,20 @@ from typing import Any
 
 import numpy as np
 
-#: Command while at rest (N): every target is an equilibrium (A x_f = 0).
+#: Command while at rest (N): every target is an equilibrium (A x_f = 0).  Several inputs: zero on every
+#: input (the node publishes ``HOLD`` as ``m`` zeros).
 HOLD = 0.0
+
+
+def is_hold(value) -> bool:
+    """``value`` (a command: one float, or one per input) is the hold: zero on every input."""
+    return value is not None and not np.any(np.asarray(value, float) != HOLD)
+
+
+def command_text(value) -> str:
+    """A command for a log line: ``0.5`` or ``[30, -50]`` (9 significant digits)."""
+    v = np.atleast_1d(np.asarray(value, float))
+    return f"{v[0]:.9g}" if np.ndim(value) == 0 else "[" + ", ".join(f"{x:.9g}" for x in v) + "]"
 
 
 @dataclass
@@ -28,7 +40,8 @@ class Segment:
     Attributes
     ----------
     commands : ndarray
-        ``u_i`` for ``i = 0..K-1`` (N), each sent for one sample period.
+        ``u_i`` for ``i = 0..K-1`` (N), each sent for one sample period: shape ``(K,)``
+        for one input, ``(K, m)`` for several (one row per sample).
     states : ndarray
         Predicted states before each command and after the last (``K + 1`` rows).
     start : int
@@ -48,7 +61,12 @@ class Segment:
     @property
     def samples(self) -> int:
         """Number of commands ``K`` (samples)."""
-        return int(self.commands.size)
+        return int(self.commands.shape[0]) if self.commands.ndim else int(self.commands.size)
+
+    def command(self, i: int):
+        """Command ``i``: a float for one input, a row of ``m`` values for several."""
+        c = self.commands[i]
+        return float(c) if self.commands.ndim == 1 else c
 
     @property
     def end(self) -> int:
@@ -86,4 +104,4 @@ def predicted_state(timeline: Sequence[Segment], k: int) -> np.ndarray | None:
     return seg.state_at(k)
 
 
-__all__ = ["HOLD", "Segment", "predicted_state"]
+__all__ = ["HOLD", "Segment", "command_text", "is_hold", "predicted_state"]

@@ -36,20 +36,28 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.errors import GoalError
-from ..execution.measured_state import RIGID_BODY, closest
+from ..core.parameters import closest_hint
+from ..execution.measured_state import RIGID_BODY
 
 #: Prefix of ``Path.header.frame_id`` when a GetPlan request is refused.
 ERROR_PREFIX = "error: "
 
 
-def command(value: float) -> Float64MultiArray:
-    """One command sample (N)."""
-    return Float64MultiArray(data=[float(value)])
+def command(value: float, inputs: int = 1) -> Float64MultiArray:
+    """One command sample (N): one value, or ``inputs`` values (all ``value``) for a multi-input machine."""
+    return Float64MultiArray(data=[float(value)] * int(inputs))
 
 
 def command_value(msg: Float64MultiArray) -> float:
     """The command in a ``commands`` message (first element; NaN if empty)."""
     return float(msg.data[0]) if len(msg.data) else math.nan
+
+
+def command_values(msg: Float64MultiArray, inputs: int) -> np.ndarray:
+    """The ``inputs`` values of a multi-input ``commands`` message (NaN if it has another count)."""
+    if len(msg.data) != inputs:
+        return np.full(inputs, math.nan)
+    return np.asarray(msg.data, dtype=float)
 
 
 def decimation(n: int, max_points: int) -> np.ndarray:
@@ -177,7 +185,7 @@ def trajectory_goal(msg: JointTrajectory, joint_name: str = RIGID_BODY) -> Traje
             raise GoalError(
                 "joint_trajectory.joint_names",
                 f"unknown joint {n!r}: this planner moves only {joint_name!r} (parameter joint_name)"
-                + closest(n, [joint_name]),
+                + closest_hint(n, [joint_name]),
             )
     if len(names) != 1:
         raise GoalError("joint_trajectory.joint_names", f"names {joint_name!r} {len(names)} times; give it once")
@@ -210,7 +218,8 @@ def joint_state(names: list[str], x: np.ndarray, u: float, stamp: Time) -> Joint
     msg.name = list(names)
     msg.position = [float(v) for v in x[0::2]]
     msg.velocity = [float(v) for v in x[1::2]]
-    msg.effort = [float(u)] * len(names)
+    # one input: its command on every joint; several: no effort (one command per input, not per joint)
+    msg.effort = [float(u)] * len(names) if np.ndim(u) == 0 else []
     return msg
 
 

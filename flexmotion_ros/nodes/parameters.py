@@ -13,6 +13,12 @@ Validation is the core's: a candidate parameter set is turned into a
 refuse exactly the same files.  The plant adds its model-error and friction
 parameters (:func:`plant_config_from_parameters`).
 
+Several inputs (issue 12): ``model.inputs`` makes the parameter set a
+multi-input machine (:mod:`flexmotion_ros.core.multi_input.dispatch` decides,
+for the command line and the nodes alike); ``model.b0``, ``model.c``, ``u_max``
+and the initial positions are then double arrays, so they are declared with
+dynamic typing (a double for one input, a double array for several).
+
 Changing the number of modes needs ``model.omega``, ``model.zeta`` and
 ``model.b`` in one atomic set (``SetParametersAtomically``); one at a time,
 each intermediate set has mismatched lengths and is refused.
@@ -23,9 +29,10 @@ from __future__ import annotations
 import array
 import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
+import numpy as np
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -39,10 +46,12 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.config import DEFAULTS, PlannerConfig, config_from_parameters
+from ..core.config import DEFAULTS
 from ..core.errors import ConfigError, FlexmotionError, InputError
 from ..core.methods import METHODS
-from ..core.model.modal_model import ModalModel
+from ..core.multi_input.config import MultiPlannerConfig
+from ..core.multi_input.dispatch import AnyConfig, AnyModel, config_from_any
+from ..core.multi_input.model import MultiModel
 from ..core.parameters import METHOD_OPTIONS, check_name, check_type, required_options
 
 INF = math.inf
@@ -65,6 +74,8 @@ class Spec:
         A change cannot apply live (fixed at start-up).
     fp_range, int_range : tuple, optional
         ``(from, to)`` for a descriptor range.
+    dynamic : bool
+        Declared with dynamic typing: a double for one input, a double array for several.
     """
 
     name: str
@@ -73,9 +84,10 @@ class Spec:
     read_only: bool = False
     fp_range: tuple[float, float] | None = None
     int_range: tuple[int, int] | None = None
+    dynamic: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
-        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only, dynamic_typing=self.dynamic)
         if self.fp_range is not None:
             d.floating_point_range = [
                 FloatingPointRange(from_value=float(self.fp_range[0]), to_value=float(self.fp_range[1]), step=0.0)
@@ -91,15 +103,18 @@ def _model_specs(read_only: bool) -> list[Spec]:
         Spec(
             "model.b0",
             DEFAULTS["model.b0"],
-            "rigid-body input gain b0 (acceleration per unit input, e.g. 1/kg); non-zero." + tail,
+            "rigid-body input gain b0 (acceleration per unit input, e.g. 1/kg); non-zero. Several inputs: a double "
+            "array, k x m row-major." + tail,
             read_only,
+            dynamic=True,
         ),
         Spec(
             "model.c",
             DEFAULTS["model.c"],
-            "rigid-body viscous term c (1/s), <= 0." + tail,
+            "rigid-body viscous term c (1/s), <= 0. Several inputs: one per rigid body." + tail,
             read_only,
             fp_range=(-1e12, 0.0),
+            dynamic=True,
         ),
         Spec(
             "model.omega",
@@ -116,7 +131,34 @@ def _model_specs(read_only: bool) -> list[Spec]:
         Spec(
             "model.b",
             Parameter.Type.DOUBLE_ARRAY,
-            "modal input gains b_i, each non-zero, one per mode." + tail,
+            "modal input gains b_i, each non-zero, one per mode. Several inputs: N x m, row-major." + tail,
+            read_only,
+        ),
+        *_multi_model_specs(read_only, tail),
+    ]
+
+
+def _multi_model_specs(read_only: bool, tail: str) -> list[Spec]:
+    """The multi-input model's names (issue 12): set ``model.inputs`` and the model has several inputs."""
+    return [
+        Spec(
+            "model.inputs",
+            Parameter.Type.STRING_ARRAY,
+            "names of the m actuated joints (inputs); set: a multi-input model (b0, b, u_max per input); "
+            "empty: one input." + tail,
+            read_only,
+        ),
+        Spec(
+            "model.rigid_bodies",
+            Parameter.Type.STRING_ARRAY,
+            "multi-input: names of the k rigid-body coordinates (default [rigid_body]); the measured and simulated "
+            "joint_states name them." + tail,
+            read_only,
+        ),
+        Spec(
+            "model.mode_names",
+            Parameter.Type.STRING_ARRAY,
+            "multi-input: names of the N modes (default mode_1 ... mode_N); the joint_states name them." + tail,
             read_only,
         ),
     ]
@@ -140,8 +182,21 @@ def planner_specs() -> list[Spec]:
         Spec(
             "u_max",
             DEFAULTS["u_max"],
-            "actuator bound |u| <= u_max (N or the model's input unit), > 0. Applies to the next goal.",
+            "actuator bound |u| <= u_max (N or the model's input unit), > 0; several inputs: one per input (a double "
+            "array) or one for all. Applies to the next goal.",
             fp_range=(0.0, 1e12),
+            dynamic=True,
+        ),
+        Spec(
+            "sync",
+            Parameter.Type.STRING,
+            "multi-input time_optimal: 'time' (unset: every axis arrives at T*), 'none' (each decoupled axis "
+            "as fast as it can) or 'phase' (a straight rigid-body path). Applies to the next goal.",
+        ),
+        Spec(
+            "fuel_weights",
+            Parameter.Type.DOUBLE_ARRAY,
+            "multi-input min_fuel: weight c_i of each input's fuel (eq. 2.38), each > 0; unset: all 1.",
         ),
         Spec(
             "rate_hz",
@@ -169,6 +224,14 @@ def planner_specs() -> list[Spec]:
             fp_range=(0.0, 1e9),
         ),
         Spec(
+            "max_move_samples",
+            DEFAULTS["max_move_samples"],
+            "most command samples (>= 1) a goal's plan may need at rate_hz: a goal whose rigid-body minimum time "
+            "x rate_hz exceeds it is refused in microseconds, before planning (e.g. a goal of 1e6 m). A change "
+            "applies to the next goal.",
+            int_range=(1, 1_000_000_000),
+        ),
+        Spec(
             "publish_hold_when_idle",
             True,
             "true: keep publishing the hold command (0) at rate_hz while idle; false: the stream ends with one explicit hold sample after each move.",
@@ -184,14 +247,17 @@ def planner_specs() -> list[Spec]:
         Spec(
             "initial_position",
             0.0,
-            "position (m or rad) the planner assumes, at rest, at start-up. Fixed at start-up.",
+            "position (m or rad) the planner assumes, at rest, at start-up (state.source: assumed); several rigid "
+            "bodies: one each, or one for all. Fixed at start-up.",
             read_only=True,
+            dynamic=True,
         ),
         Spec(
             "replan_lead_s",
             0.05,
             "smallest look-ahead (s) of a preemption or stop: the new plan starts at a sample at least this far ahead "
-            "(and at least 1.5 x the slowest recent plan + 20 ms), in [0, 60].",
+            "(and 1.5 x the recent planning time + 20 ms, the slowest 20 % of the last 20 plans set aside, at most "
+            "1 s), in [0, 60].",
             fp_range=(0.0, 60.0),
         ),
         Spec(
@@ -220,6 +286,13 @@ def _goal_specs() -> list[Spec]:
             "rigid_body",
             "the joint this planner moves: ~/joint_trajectory goals must name it (others are refused), and the "
             "rigid body's name in the measured joint_states. Fixed at start-up.",
+            read_only=True,
+        ),
+        Spec(
+            "joint_names",
+            Parameter.Type.STRING_ARRAY,
+            "multi-input: the joints of 'commands', one per input, in the order of its values (a ros2_control "
+            "forward command controller with these joints); empty: model.inputs. Fixed at start-up.",
             read_only=True,
         ),
         Spec(
@@ -272,6 +345,7 @@ PLANNER_NODE_ONLY = frozenset(
         "frame_id",
         "diagnostics_period_s",
         "joint_name",
+        "joint_names",
         "state.source",
         "state.topic",
         "state.mode_joint_names",
@@ -336,8 +410,10 @@ def plant_specs() -> list[Spec]:
         Spec(
             "plant.initial_position",
             0.0,
-            "initial rigid-body position (m or rad), at rest. Fixed at start-up.",
+            "initial rigid-body position (m or rad), at rest; several rigid bodies: one each, or one for all. "
+            "Fixed at start-up.",
             read_only=True,
+            dynamic=True,
         ),
         Spec(
             "plant.idle_state_period_s",
@@ -454,9 +530,9 @@ def declare_method_options(node: Node, known: Iterable[str]) -> list[str]:
     return [s.name for s in specs]
 
 
-def planner_config(values: Mapping[str, Any]) -> PlannerConfig:
-    """The core configuration from the planner's parameter values (node-only names dropped)."""
-    return config_from_parameters({k: v for k, v in values.items() if k not in PLANNER_NODE_ONLY})
+def planner_config(values: Mapping[str, Any]) -> AnyConfig:
+    """The core configuration from the planner's parameter values (node-only names dropped): one input or several."""
+    return config_from_any({k: v for k, v in values.items() if k not in PLANNER_NODE_ONLY})
 
 
 def validating_callback(
@@ -472,6 +548,10 @@ def validating_callback(
         candidate = current()
         for p in params:
             candidate[p.name] = plain(p.value) if p.value is not None else []
+            try:  # the registry's ROS type: rclpy no longer checks the dynamically typed ones (u_max, model.b0, ...)
+                check_type(p.name, candidate[p.name])
+            except ConfigError as exc:
+                return SetParametersResult(successful=False, reason=f"wrong type: {exc}")
         try:
             validate(candidate)
         except FlexmotionError as exc:
@@ -490,9 +570,10 @@ class PlantConfig:
 
     Attributes
     ----------
-    nominal : ModalModel
-        The model in the parameter file (what the planner believes).
-    model : ModalModel
+    nominal : ModalModel or MultiModel
+        The model in the parameter file (what the planner believes); a
+        :class:`MultiModel` when the file sets ``model.inputs``.
+    model : ModalModel or MultiModel
         The simulated machine: ``nominal`` with the model errors applied.
     rate_hz : float
         Sample rate (Hz).
@@ -500,20 +581,20 @@ class PlantConfig:
     command_timeout : float
         Seconds (s) without command before zero force (real-time mode).
     coulomb_force : float
-        Coulomb friction force (N) at the rigid body; 0: none.
-    initial_position : float
-        Initial rigid-body position (m or rad).
+        Coulomb friction force (N) at the rigid body; 0: none (one input only).
+    initial_position : float or ndarray
+        Initial rigid-body position (m or rad); one per rigid body for a multi-input model.
     apply_at : str
         Real time: commands act from their ``"arrival"`` or ``"send"`` time.
     """
 
-    nominal: ModalModel
-    model: ModalModel
+    nominal: AnyModel
+    model: AnyModel
     rate_hz: float
     lockstep: bool
     command_timeout: float
     coulomb_force: float
-    initial_position: float
+    initial_position: Any
     apply_at: str = "arrival"
 
     @property
@@ -521,16 +602,54 @@ class PlantConfig:
         """Sample period (s)."""
         return 1.0 / self.rate_hz
 
+    @property
+    def inputs(self) -> int:
+        """Values per command sample (``m``; 1 for a single-input model)."""
+        return self.model.m if isinstance(self.model, MultiModel) else 1
+
+
+#: What the plant reads of the planner's parameter file.
+PLANT_MODEL_NAMES = (
+    "model.b0",
+    "model.c",
+    "model.omega",
+    "model.zeta",
+    "model.b",
+    "model.inputs",
+    "model.rigid_bodies",
+    "model.mode_names",
+    "rate_hz",
+)
+
+
+def _perturbed(nominal: AnyModel, omega: tuple, zeta: tuple) -> AnyModel:
+    if isinstance(nominal, MultiModel):
+        return replace(nominal, omega=omega, zeta=zeta)
+    return nominal.with_changes(omega=omega, zeta=zeta)
+
+
+def _initial_position(value: Any, nominal: AnyModel) -> Any:
+    if isinstance(nominal, MultiModel):
+        p = [float(v) for v in (value if isinstance(value, (list, tuple)) else [value])]
+        if len(p) == 1:
+            p = p * nominal.k
+        if len(p) != nominal.k or not all(math.isfinite(v) for v in p):
+            raise ConfigError(
+                "plant.initial_position",
+                f"needs one finite position per rigid body {list(nominal.rigid_bodies)} (or one for all), got {value!r}",
+            )
+        return np.array(p)
+    if isinstance(value, (list, tuple)):
+        raise ConfigError("plant.initial_position", f"a single-input model takes one position, got {value!r}")
+    p0 = float(value)
+    if not math.isfinite(p0):
+        raise ConfigError("plant.initial_position", f"must be finite, got {p0}")
+    return p0
+
 
 def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     """Validate the plant's parameters; raise :class:`FlexmotionError` naming the bad one."""
-    base = config_from_parameters(
-        {
-            k: values[k]
-            for k in ("model.b0", "model.c", "model.omega", "model.zeta", "model.b", "rate_hz")
-            if k in values
-        }
-    )
+    base = config_from_any({k: values[k] for k in PLANT_MODEL_NAMES if k in values})
     nominal = base.model
     n = nominal.n_modes
     scale = list(values.get("plant.omega_scale") or [])
@@ -548,18 +667,20 @@ def plant_config_from_parameters(values: Mapping[str, Any]) -> PlantConfig:
     omega = tuple(w * (scale[i] if scale else 1.0) for i, w in enumerate(nominal.omega))
     zeta = tuple(z + (extra[i] if extra else 0.0) for i, z in enumerate(nominal.zeta))
     try:
-        model = nominal.with_changes(omega=omega, zeta=zeta)
+        model = _perturbed(nominal, omega, zeta)
     except InputError as exc:
         raise ConfigError("plant.omega_scale/extra_zeta", f"the perturbed model is invalid: {exc}") from None
     coulomb = float(values.get("plant.coulomb_force", 0.0))
     if not (math.isfinite(coulomb) and coulomb >= 0.0):
         raise ConfigError("plant.coulomb_force", f"must be finite and >= 0 N, got {coulomb}")
+    if coulomb > 0.0 and isinstance(base, MultiPlannerConfig):
+        raise ConfigError(
+            "plant.coulomb_force", "Coulomb friction is simulated for one input only; set 0.0 for a multi-input model"
+        )
     timeout = float(values.get("command_timeout", 0.1))
     if not (math.isfinite(timeout) and timeout >= 0.0):
         raise ConfigError("command_timeout", f"must be finite and >= 0 s, got {timeout}")
-    p0 = float(values.get("plant.initial_position", 0.0))
-    if not math.isfinite(p0):
-        raise ConfigError("plant.initial_position", f"must be finite, got {p0}")
+    p0 = _initial_position(values.get("plant.initial_position", 0.0), nominal)
     apply_at = str(values.get("plant.apply_at", "arrival"))
     if apply_at not in ("arrival", "send"):
         raise ConfigError("plant.apply_at", f"must be 'arrival' or 'send', got {apply_at!r}")

@@ -13,6 +13,8 @@ otherwise leave the status stale exactly when it matters.
 from __future__ import annotations
 
 import threading
+import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -23,6 +25,8 @@ from rclpy.node import Node
 from . import messages
 
 DIAGNOSTIC_NAME = "flexmotion_planner: motion"
+#: The status thread's own period (s): the ``tick`` callback runs this often, whatever ``period_s``.
+TICK_S = 0.05
 
 
 class StatusReporter:
@@ -44,13 +48,22 @@ class StatusReporter:
         Returns the node's own values of the status (position at rest, the
         configuration's figures, subscribers, ...), in the order they appear
         after ``state``, ``planning``, ``last_error`` and ``target``.
+    tick : callable, optional
+        Called from the thread every :data:`TICK_S` (the planner checks its
+        writer-side matches there).
     """
 
     def __init__(
-        self, node: Node, period_s: float, target: float | None, context: Callable[[], Mapping[str, Any]]
+        self,
+        node: Node,
+        period_s: float,
+        target: float | None,
+        context: Callable[[], Mapping[str, Any]],
+        tick: Callable[[], None] | None = None,
     ) -> None:
         self._node = node
         self._context = context
+        self._tick = tick
         self._lock = threading.Lock()
         self._state = "idle"
         self._lifecycle = "unconfigured"
@@ -61,6 +74,8 @@ class StatusReporter:
         self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._period = float(period_s)
         self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._deferred: deque[Callable[[], None]] = deque()
         self._thread = threading.Thread(target=self._loop, name="flexmotion-diagnostics", daemon=True)
 
     # ------------------------------------------------------------------ thread
@@ -71,13 +86,34 @@ class StatusReporter:
     def stop(self) -> None:
         """End the periodic publishing (waits up to 2 s for the thread)."""
         self._stop.set()
+        self._wake.set()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
 
+    def defer(self, work: Callable[[], None]) -> None:
+        """Run ``work`` in the status thread soon (within :data:`TICK_S`): keeps it off the caller's thread.
+
+        The stream thread hands its end-of-move report here: statistics, log and
+        /diagnostics must not delay the next sample.
+        """
+        self._deferred.append(work)
+        self._wake.set()
+
     def _loop(self) -> None:
-        while not self._stop.wait(self._period):
+        due = time.monotonic() + self._period
+        while not self._stop.is_set():
+            self._wake.wait(min(TICK_S, max(0.0, due - time.monotonic())))
+            self._wake.clear()
+            if self._stop.is_set():
+                return
             try:
-                self.publish()
+                while self._deferred:
+                    self._deferred.popleft()()
+                if self._tick is not None:
+                    self._tick()
+                if time.monotonic() >= due:
+                    due += self._period
+                    self.publish()
             except Exception as exc:  # noqa: BLE001 -- a shutdown race (context gone) ends the loop
                 if not self._stop.is_set():
                     self._node.get_logger().warning(f"/diagnostics: {type(exc).__name__}: {exc}")

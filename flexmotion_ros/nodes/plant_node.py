@@ -7,6 +7,13 @@ and publishes ``joint_states`` (sensor_msgs/JointState: ``rigid_body``,
 ``mode_1`` ... ``mode_N``; position and velocity of each; effort = the
 applied command on every joint) and its status on ``/diagnostics``.
 
+Several inputs (``model.inputs`` set, issue 12): ``commands`` carries one
+value per input (``model.inputs`` order; a message with another count, or a
+non-finite value, applies zero force), the integration is the exact ZOH of
+the ``m``-input model (:func:`core.multi_input.exact.step_matrices`), and
+``joint_states`` names ``model.rigid_bodies`` then ``model.mode_names``
+(effort left empty: there is one command per input, not per joint).
+
 Integration is exact (zero-order hold, the core's matrix-exponential
 propagation :func:`core.simulation.step_matrices` of the simulated model; no
 ODE solver):
@@ -54,6 +61,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from ..core.friction.contact import simulate_coulomb
+from ..core.multi_input.dispatch import mode_names, positions_text, rest_state, rigid_body_names
+from ..core.multi_input.exact import step_matrices as multi_step_matrices
 from ..core.simulation.exact import PiecewiseConstant, step_matrices
 from . import messages
 from .parameters import (
@@ -75,7 +84,8 @@ PLANT_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, hist
 IDLE_STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
 #: Real-time event times are kept on this grid (s), so step matrices can be cached.
 TIME_QUANTUM = 1e-6
-_CACHE_LIMIT = 20000
+#: Step matrices kept for real-time event intervals (bounded: cleared when full; ~1 MB for two modes).
+_CACHE_LIMIT = 2048
 #: Silent this long (us) after a cut-off, the zero force is settled into the state
 #: (a busy executor has been measured handing commands over > 1 s late).
 SETTLE_US = 10_000_000
@@ -111,9 +121,9 @@ class PlantNode(Node):
         # Real time keeps the state at the last *event* (a command's arrival):
         # x_event at t_event (integer microseconds on the system clock since
         # start-up, the clock DDS receive stamps use), command u held since.
-        self.x_event = cfg.model.rest_state(cfg.initial_position)
+        self.x_event = rest_state(cfg.model, cfg.initial_position)
         self.x = self.x_event.copy()  # the last published state
-        self.u = 0.0
+        self.u = self._zero
         self.received = 0  # commands handed over by the executor
         self.applied = 0  # commands integrated
         self.timeouts = 0
@@ -123,7 +133,8 @@ class PlantNode(Node):
         self._origin_ns = time.time_ns()
         self._t_event = 0
         self._last_command_at: int | None = None
-        self.joint_names = ["rigid_body"] + list(cfg.model.names)
+        self._timeout_reported_for = -math.inf  # the cut-off (us) last counted as a timeout
+        self.joint_names = list(rigid_body_names(cfg.model)) + list(mode_names(cfg.model))
 
         self._pub = self.create_publisher(JointState, "joint_states", PLANT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -158,7 +169,9 @@ class PlantNode(Node):
         self._model_error = "; ".join(errors) or "none"
         self.get_logger().info(
             f"ready: {'lockstep' if cfg.lockstep else 'real time'} at {cfg.rate_hz:g} Hz, {cfg.model.n_modes} mode(s), "
-            f"at {cfg.initial_position:g}" + (f"; model error: {self._model_error}" if errors else "")
+            f"at {positions_text(cfg.initial_position)}"
+            + (f", {cfg.inputs} inputs" if cfg.inputs > 1 else "")
+            + (f"; model error: {self._model_error}" if errors else "")
         )
 
     # ------------------------------------------------------------ parameters
@@ -168,18 +181,22 @@ class PlantNode(Node):
     def _apply(self, cfg: PlantConfig) -> None:
         """Use ``cfg`` from the next step on (model errors and friction may change live)."""
         A, B = cfg.model.A(), cfg.model.B()
+        # several inputs: Gamma is n x m (the multi-input exact ZOH); one input: a vector
+        steps = multi_step_matrices if cfg.inputs > 1 else step_matrices
         with self._lock:
             self.cfg = cfg
             self._A, self._B = A, B
+            self._step_matrices = steps
+            self._zero = np.zeros(cfg.inputs) if cfg.inputs > 1 else 0.0  # the hold: zero force on every input
             self._steps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-            self._Phi, self._Gam = step_matrices(A, B, cfg.dt)
+            self._Phi, self._Gam = steps(A, B, cfg.dt)
             self._coulomb = simulate_coulomb if cfg.coulomb_force > 0.0 else None
             self._timeout_us = round(cfg.command_timeout / TIME_QUANTUM)
             self._stamp_key = "source_timestamp" if cfg.apply_at == "send" else "received_timestamp"
 
     # ----------------------------------------------------------- integration
-    def _step(self, x: np.ndarray, h: float, u: float, h_key: int | None = None) -> np.ndarray:
-        """Exact zero-order-hold step: ``h`` s (``h_key`` in TIME_QUANTUM units, for the cache) with ``u`` (N)."""
+    def _step(self, x: np.ndarray, h: float, u, h_key: int | None = None) -> np.ndarray:
+        """Exact zero-order-hold step: ``h`` s (``h_key`` in TIME_QUANTUM units, for the cache) with ``u`` (N; m values)."""
         if h <= 0.0:
             return x
         if self._coulomb is not None:
@@ -192,9 +209,9 @@ class PlantNode(Node):
             if m is None:
                 if len(self._steps) > _CACHE_LIMIT:
                     self._steps.clear()
-                m = self._steps[h_key] = step_matrices(self._A, self._B, h_key * TIME_QUANTUM)
+                m = self._steps[h_key] = self._step_matrices(self._A, self._B, h_key * TIME_QUANTUM)
             Phi, Gam = m
-        return Phi @ x + Gam * u
+        return Phi @ x + np.dot(Gam, u)
 
     def _cutoff(self) -> float:
         """Time (us) from which the held command stops acting (its arrival + command_timeout)."""
@@ -213,41 +230,52 @@ class PlantNode(Node):
         if cutoff > t0:
             x = self._step(x, (cutoff - t0) * TIME_QUANTUM, self.u, cutoff - t0)
             t0 = int(cutoff)
-        return self._step(x, (t - t0) * TIME_QUANTUM, 0.0, t - t0)
+        return self._step(x, (t - t0) * TIME_QUANTUM, self._zero, t - t0)
 
     def _integrate_events(self, now: int) -> None:
         """Apply the queued commands in order, each from its arrival time."""
         while self._events:
             arrived, u = self._events.popleft()
             arrived = max(arrived, self._t_event)  # in order; never step back
-            if arrived > self._cutoff() and self.u != 0.0:
-                self._note_timeout()
+            if arrived > self._cutoff() and _nonzero(self.u):
+                self._note_timeout()  # once per cut-off: the timer may have reported it already
             self.x_event = self._state_at(arrived)
             self._t_event = arrived
             self.u = u
             self._last_command_at = arrived
             self.applied += 1
             self.max_lag = max(self.max_lag, (now - arrived) * TIME_QUANTUM)
-        if self.u != 0.0 and now > self._cutoff() + max(SETTLE_US, 100 * self._timeout_us):
+        if _nonzero(self.u) and now > self._cutoff() + max(SETTLE_US, 100 * self._timeout_us):
             # long silent: no late command can still arrive before the cut-off; settle it
             self._note_timeout()
             self.x_event = self._state_at(now)
             self._t_event = now
-            self.u = 0.0
+            self.u = self._zero
 
-    def _note_timeout(self) -> None:
+    def _note_timeout(self) -> bool:
+        """Count and log the cut-off of the held command once (when it happens, or when a late command shows it).
+
+        Returns True if this call reported it.
+        """
+        cutoff = self._cutoff()
+        if cutoff == self._timeout_reported_for:
+            return False
+        self._timeout_reported_for = cutoff
         self.timeouts += 1
         self.get_logger().warning(f"no command for {self.cfg.command_timeout:g} s: zero force from then on")
+        return True
 
     def _now(self) -> int:
         """System clock since start-up, in TIME_QUANTUM units."""
         return (time.time_ns() - self._origin_ns) // 1000
 
     def _on_command(self, msg: Float64MultiArray, info: dict) -> None:  # two arguments: rclpy passes MessageInfo
-        u = messages.command_value(msg)
-        if not math.isfinite(u):
-            self.get_logger().error(f"non-finite command {u}: applying zero force")
-            u = 0.0
+        u = messages.command_value(msg) if self.cfg.inputs == 1 else messages.command_values(msg, self.cfg.inputs)
+        if not np.all(np.isfinite(u)):
+            self.get_logger().error(
+                f"non-finite command {u} (or not {self.cfg.inputs} values: {len(msg.data)}): applying zero force"
+            )
+            u = self._zero
         with self._lock:
             self.received += 1
             if self.cfg.lockstep:
@@ -267,7 +295,12 @@ class PlantNode(Node):
             now = self._now()
             self._integrate_events(now)
             self.x = self._state_at(now)
-            self._publish(self.u if now <= self._cutoff() else 0.0)
+            held = now <= self._cutoff()
+            self._publish(self.u if held else self._zero)
+            # the force is cut now: say so now (issue 16: the counter and the warning came 10 s later)
+            reported = not held and _nonzero(self.u) and self._note_timeout()
+        if reported:
+            self.publish_diagnostics()
 
     def _on_idle_timer(self) -> None:
         """Lockstep: no command for a whole period, publish the (unchanged) state as a best-effort heartbeat."""
@@ -327,6 +360,11 @@ class PlantNode(Node):
                 self.get_clock().now().to_msg(),
             )
         )
+
+
+def _nonzero(u) -> bool:
+    """Some input's command is not zero (a float, or one value per input)."""
+    return bool(np.any(np.asarray(u) != 0.0))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,8 +22,8 @@ from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from ..core.config import read_parameter_sections
 from ..core.errors import FlexmotionError
+from ..core.parameter_file import read_parameter_sections
 
 
 def run(make_node: Callable[[], Node], make_executor: Callable[[], Executor], name: str, args: list[str] | None) -> int:

@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -310,6 +311,19 @@ def test_a_typo_in_a_key_is_refused_with_the_closest_name(capsys, tmp_path):
 
 
 @pytest.mark.parametrize(
+    "line, verdict",
+    [
+        ("state: {source: bogus}", "state.source: must be one of ['measured', 'assumed'], got 'bogus'"),
+        ("trajectory: {early_arrival: optimun}", "got 'optimun' (closest: 'optimum')"),
+    ],
+)
+def test_a_node_parameter_outside_its_choices_is_refused_like_the_node_does(capsys, tmp_path, line, verdict):
+    """Old main: `flexmotion plan` planned (exit 0) with state.source: bogus; the node refused it."""
+    path = _with(tmp_path, "u_max: 1.0 ", f"{line}\n    u_max: 1.0 ")
+    assert_refused(capsys, ["plan", "--config", path, "--goal", "1"], verdict)
+
+
+@pytest.mark.parametrize(
     "method, option, closest",
     [
         ("time_optimal_friction", "colomb_force=0.1", "coulomb_force"),
@@ -411,3 +425,26 @@ def test_installed_console_script():
     )
     assert bad.returncode == 2 and bad.stdout == ""
     assert bad.stderr.count("\n") == 1 and "goal" in bad.stderr
+
+
+def test_a_goal_over_the_sample_budget_is_refused_before_planning(capsys, tmp_path):
+    """Issue 16: ``--goal 1e6 --rate 200`` was a 47-minute move planned in 8.6 s; now refused up front."""
+    argv = ["plan", "--config", str(WB_CONFIG), "--goal", "1e6", "--rate", "200"]
+    t0 = time.perf_counter()
+    assert_refused(
+        capsys, argv, "goal: the move needs at least 5.657e+05 samples at 200 Hz", "max_move_samples = 100000"
+    )
+    assert time.perf_counter() - t0 < 1.0
+    path = _with(tmp_path, "u_max: 1.0 ", "max_move_samples: 600000\n    u_max: 1.0 ")
+    assert_refused(capsys, ["plan", "--config", path, "--goal", "1.5e6", "--rate", "200"], "max_move_samples = 600000")
+
+
+def test_a_mode_above_the_nyquist_frequency_is_refused_with_the_reason(capsys, tmp_path):
+    """Issue 16: omega 1e5 rad/s at 1 kHz planned for 36.9 s; the file is refused as the node refuses it."""
+    path = _with(tmp_path, "rate_hz: 1000.0", "rate_hz: 0.2")
+    assert_refused(
+        capsys,
+        ["plan", "--config", path, "--goal", "1"],
+        "model.omega[0]: 1.41421 rad/s is at or above the Nyquist frequency pi x rate_hz = 0.628319 rad/s",
+        "raise rate_hz above 0.450158 Hz",
+    )

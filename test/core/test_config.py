@@ -337,6 +337,38 @@ def test_a_goal_beyond_the_move_budget_is_refused_before_planning():
         assert exc.value.parameter == "max_move_duration_s"
 
 
+def test_the_sample_budget_refuses_with_a_lower_bound_and_is_validated():
+    """Issue 16: a goal of 1e6 was a 47-minute move planned in 8.6 s; the budget refuses it up front."""
+    from flexmotion_ros.core.config import check_move_samples
+    from flexmotion_ros.core.model.boundary import rest_to_rest
+
+    cfg = load_config(CONFIG_DIR / "wie_bernstein.yaml")
+    assert cfg.max_move_samples == 100_000
+    unit = rest_to_rest(cfg.model, cfg.u_max, 1.0)  # rigid body: 2 sqrt(2) s = 2828.4 samples at 1 kHz
+    assert check_move_samples(cfg, unit) == 2829
+    with pytest.raises(GoalError) as exc:
+        check_move_samples(cfg.with_changes(max_move_samples=2828), unit)
+    assert exc.value.parameter == "goal" and "max_move_samples = 2828" in exc.value.reason
+    assert check_move_samples(cfg, unit, rate_hz=10.0) == 29  # a given rate counts, not config.rate_hz
+    with pytest.raises(GoalError, match="5.657e"):
+        check_move_samples(cfg, rest_to_rest(cfg.model, cfg.u_max, 1e6), rate_hz=200.0)
+    for bad in (0, -3, 1.5, True, "7"):
+        with pytest.raises(ConfigError) as exc:
+            cfg.with_changes(max_move_samples=bad)
+        assert exc.value.parameter == "max_move_samples"
+
+
+def test_a_mode_at_or_above_the_nyquist_frequency_is_refused_from_parameters():
+    """Issue 16: omega 1e5 rad/s at 1 kHz was accepted, and planned for 36.9 s."""
+    base = {"model.omega": [5.0, 3141.0], "model.zeta": [0.0, 0.0], "model.b": [1.0, 1.0], "rate_hz": 1000.0}
+    assert config_from_parameters(base).model.omega[1] == 3141.0  # just below pi x 1000
+    with pytest.raises(ConfigError) as exc:
+        config_from_parameters({**base, "model.omega": [5.0, 3142.0]})
+    assert exc.value.parameter == "model.omega[1]" and "Nyquist frequency pi x rate_hz = 3141.59 rad/s" in str(
+        exc.value
+    )
+
+
 def test_every_method_option_is_registered_with_its_methods():
     from flexmotion_ros.core.methods import METHODS
     from flexmotion_ros.core.parameters import METHOD_OPTIONS, required_options

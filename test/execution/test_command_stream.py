@@ -385,3 +385,20 @@ def test_ready_stops_are_planned_ahead_and_used_only_while_the_timeline_still_pr
         assert got is first and first not in prep.ready()
     finally:
         prep.stop()
+
+
+def test_the_sample_record_is_a_ring_of_constant_size():
+    # issue 16.8: a deque of Python floats (maxlen 200,000) grew the planner by ~13 MB over its first
+    # 200,000 samples -- measured by the storm as a leak; the ring is allocated once
+    from flexmotion_ros.execution.command_stream import SampleRecord
+
+    rec = SampleRecord(5)
+    nbytes = rec._buf.nbytes  # noqa: SLF001 -- the allocation itself is what is tested
+    for k in range(12):
+        rec.append(float(k), -float(k))
+    assert rec._buf.nbytes == nbytes and len(rec) == 5  # noqa: SLF001
+    times, late = rec.last(3)
+    assert times.tolist() == [9.0, 10.0, 11.0] and late.tolist() == [-9.0, -10.0, -11.0]
+    assert rec.last(3, before=2)[0].tolist() == [7.0, 8.0, 9.0]
+    assert rec.last(10)[0].tolist() == [7.0, 8.0, 9.0, 10.0, 11.0]  # only what is kept
+    assert rec.last(4, before=3)[0].tolist() == [7.0, 8.0]  # older ones are gone

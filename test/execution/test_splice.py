@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -25,6 +27,7 @@ from flexmotion_ros.execution import (
     predicted_state,
     splice_point,
 )
+from flexmotion_ros.execution.splice import MAX_LEAD_S, STOP_PREP_DUTY, StopPreparer
 
 #: Wie-Bernstein at 20 Hz: a 1.0 move is 85 samples, planned in ~30 ms.
 WB = ModalModel(b0=0.5, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])
@@ -146,3 +149,66 @@ def test_plan_summary_reports_the_plan(first):
     assert info["peak_command"] == pytest.approx(np.max(np.abs(first.commands))) and 0 < info["peak_command"] <= 1.0
     assert info["plan_time_s"] == 0.125 and info["method"] == CFG.method
     assert info["certified"] in (True, False) and info["final_state_error"] < 1e-6
+
+
+def test_look_ahead_is_not_hostage_to_one_slow_plan():
+    # issue 16: 1.5 x the slowest of the last five; after an 8.9 s stop plan a mid-move goal was spliced 13.4 s
+    # after its request (old main: 2674 samples at 200 Hz here)
+    rate = 200.0
+    usual = lead_samples([0.05] * 5, 0.0, rate)
+    assert usual == math.ceil((1.5 * 0.05 + 0.02) * rate)  # 19 or 20 by the rounding of 0.095 s x 200
+    assert lead_samples([0.05] * 4 + [8.9], 0.0, rate) == usual  # the outlier is set aside
+    assert lead_samples([0.05] * 16 + [8.9, 3.0, 2.0, 7.0], 0.0, rate) == usual  # 4 of 20: still the slowest 20 %
+
+
+def test_look_ahead_is_capped_unless_the_configured_lead_asks_for_more():
+    rate = 200.0
+    assert lead_samples([8.9] * 20, 0.0, rate) == math.ceil(MAX_LEAD_S * rate) == 200
+    assert lead_samples([8.9] * 20, 2.0, rate) == 400  # replan_lead_s is the user's own floor
+    assert lead_samples([0.3, 0.31], 0.0, rate) == math.ceil((1.5 * 0.31 + 0.02) * rate)  # few plans: the slowest
+
+
+def _preparer_on_a_fake_move(plan_s: float, paused):
+    """A StopPreparer over a long fake move whose 'plan' sleeps ``plan_s``; returns it and the plan start times."""
+    model = ModalModel(b0=1.0, omega=(2.0,), zeta=(0.0,), b=(1.0,))
+    n = 100_000
+    states = np.zeros((n + 1, 4))
+    seg = Segment(np.zeros(n), states, start=0, info="move")
+    starts: list[float] = []
+    k0 = time.monotonic()
+
+    def snapshot():
+        return int((time.monotonic() - k0) * 100.0), [seg]
+
+    def plan(x0, key):
+        starts.append(time.monotonic())
+        time.sleep(plan_s)
+        return Segment(np.zeros(3), np.zeros((4, 4)), info="stop")
+
+    assert model.n_modes == 1
+    prep = StopPreparer(plan, snapshot, lambda: "key", lambda timeline: True, 100.0, paused=paused)
+    return prep, starts
+
+
+def test_stop_preparer_plans_at_most_half_the_time_and_not_while_a_goal_is_planned():
+    # issue 11: the preparer planned back to back during every move (duty 1), also while a goal was planned
+    assert STOP_PREP_DUTY <= 0.5
+    goal_planning = threading.Event()
+    prep, starts = _preparer_on_a_fake_move(0.02, goal_planning.is_set)
+    prep.start()
+    try:
+        time.sleep(0.6)
+        # duty: each plan start is at least plan time / duty after the previous one
+        gaps = np.diff(starts)
+        assert starts and np.all(gaps >= 0.02 / STOP_PREP_DUTY - 0.003), gaps
+        goal_planning.set()
+        time.sleep(0.05)  # a plan under way finishes
+        n = len(starts)
+        time.sleep(0.4)
+        assert len(starts) == n, "planned stops while a goal was being planned"
+        assert prep.pauses > 0
+        goal_planning.clear()
+        time.sleep(0.3)
+        assert len(starts) > n  # resumes
+    finally:
+        prep.stop()

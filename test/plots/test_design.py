@@ -1,11 +1,14 @@
 """The design figure (``plots/design.py``), read back: a failed design point is drawn where the optimum star
 cannot hide it, the bounds are lines (no shading over the whole plot), every curve is in the legend."""
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from flexmotion_ros.cli.main import main
+from flexmotion_ros.core.errors import SolverError
+from flexmotion_ros.core.methods import table
 from flexmotion_ros.plots import design as design_plot
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -20,6 +23,16 @@ def test_failed_point_is_visible_and_bounds_do_not_fill_the_plot(tmp_path, monke
         return figures[-1]
 
     monkeypatch.setattr(design_plot, "plot_design", keep)
+    # one design point must fail; the planner no longer fails on any of this sweep (issue 15), so a
+    # failure is injected at the middle of the log grid, k = sqrt(0.5 * 20) N/m (omega = sqrt(2 k) rad/s)
+    plan_move = table.plan_move
+
+    def failing_plan_move(config, problem, rate_hz=None):
+        if abs(config.model.omega[0] - math.sqrt(2.0 * math.sqrt(10.0))) < 1e-9:
+            raise SolverError("injected failure")
+        return plan_move(config, problem, rate_hz)
+
+    monkeypatch.setattr(table, "plan_move", failing_plan_move)
     png = tmp_path / "design.png"
     argv = ["design", "--config", str(ROOT / "config" / "design_two_mass.yaml"), "--param", "k=0.5:20"]
     assert main([*argv, "--goal", "1.0", "--grid", "9", "--plot", str(png)]) == 0

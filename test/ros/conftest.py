@@ -166,6 +166,33 @@ class Probe(Node):
         return None
 
 
+def participant_ids() -> list[int]:
+    """Fast DDS participant ids this process holds in the test's domain (from its bound UDP ports; Linux).
+
+    RTPS ports (spec 9.6.1.1): a participant's metatraffic unicast port is
+    ``7400 + 250 domain + 10 + 2 id``.  Under ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``
+    rmw_fastrtps announces only to ids 0..31 (``maxInitialPeersRange = 32``):
+    a participant with a higher id and its peers never discover each other.
+    """
+    inodes = set()
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            target = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    base = 7400 + 250 * int(os.environ["ROS_DOMAIN_ID"]) + 10
+    ids = []
+    with open("/proc/net/udp") as f:
+        for line in f.readlines()[1:]:
+            fields = line.split()
+            port = int(fields[1].split(":")[1], 16)
+            if fields[9] in inodes and base <= port < base + 250 and (port - base) % 2 == 0:
+                ids.append((port - base) // 2)
+    return sorted(ids)
+
+
 class Ros:
     """Nodes of one test, each on its own single-threaded executor in a background thread.
 
@@ -177,6 +204,7 @@ class Ros:
     """
 
     def __init__(self) -> None:
+        self._participants_before = participant_ids()
         self.context = Context()
         rclpy.init(context=self.context)
         self.nodes: list[Node] = []
@@ -249,6 +277,13 @@ class Ros:
         for node in self.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        # every node destroyed, so the context's DDS participant is gone: a leak here accumulates over the
+        # suite until a new participant gets an id past Fast DDS's 32 localhost discovery ports (unseen)
+        leaked = sorted(set(participant_ids()) - set(self._participants_before))
+        if leaked:
+            raise AssertionError(
+                f"ROS teardown: DDS participant(s) {leaked} still alive after every node was destroyed"
+            )
         if hung or self.errors:
             raise AssertionError(f"ROS teardown: callbacks still running in {hung}; executor errors: {self.errors}")
 

@@ -63,10 +63,14 @@ def test_bad_goal_is_refused_nothing_moves_node_keeps_serving(ros, goal, words):
 
 
 def test_goal_the_planner_cannot_serve_is_refused(ros):
-    """A move needing over 5e6 samples at the rate: refused by the core with the reason."""
+    """A move needing over 5e6 samples at the rate: refused by the sample budget, or beyond it by the core."""
     planner = ros.planner(rate_hz=2e5, **{"state.source": "assumed"})  # no plant: plan from the assumed state
     ros.connected(planner, subscribers=1)
     resp = ros.call(ros.probe.move, goal_request(2000.0))  # 28 s at 200 kHz
+    assert not resp.plan.poses and "max_move_samples = 100000" in messages.path_error(resp.plan)
+    (res,) = _set(ros, {"max_move_samples": 10_000_000})  # past the budget: the core's own refusal
+    assert res.successful, res.reason
+    resp = ros.call(ros.probe.move, goal_request(2000.0))
     assert not resp.plan.poses and "rate_hz" in messages.path_error(resp.plan), resp.plan.header.frame_id
     assert "rate_hz" in error_status(ros) or wait_for(lambda: "rate_hz" in error_status(ros), 5.0) is None
     resp = ros.call(ros.probe.plan, goal_request(1e-4))
@@ -201,6 +205,42 @@ def test_a_goal_beyond_the_move_budget_is_refused_up_front(ros):
     )
     assert ros.call(ros.probe.plan, goal_request(0.1)).plan.poses
     assert not planner.installed and not ros.probe.commands
+
+
+def test_a_goal_over_the_sample_budget_is_refused_in_microseconds_naming_it(ros):
+    # issue 16: a goal of 1e6 was accepted as a 47-minute move planned in 8.6 s (1e9 blocked the executor 23.8 s)
+    planner = ros.planner(**{"state.source": "assumed"})
+    ros.connected(planner, subscribers=1)
+    t0 = time.monotonic()
+    resp = ros.call(ros.probe.plan, goal_request(1e6))
+    answered_s = time.monotonic() - t0
+    reason = messages.path_error(resp.plan) or ""
+    assert not resp.plan.poses and "max_move_samples = 100000" in reason, reason
+    assert answered_s < 0.5, answered_s  # the refusal itself costs ~60 us; the rest is DDS
+    (res,) = _set(ros, {"max_move_samples": 50})  # the budget is a parameter: a 1.0 move needs >= 126 at 200 Hz
+    assert res.successful, res.reason
+    reason = messages.path_error(ros.call(ros.probe.move, goal_request(1.0)).plan) or ""
+    assert "max_move_samples = 50" in reason and "samples at 200 Hz" in reason, reason
+    assert ros.call(ros.probe.plan, goal_request(0.01)).plan.poses
+    assert not planner.installed and not ros.probe.commands
+
+
+@pytest.mark.parametrize(
+    "params, words",
+    [
+        ({"model.omega": [5.0, 1e5]}, "model.omega[1]: 100000 rad/s is at or above the Nyquist frequency"),
+        ({"model.omega": [5.0, 700.0]}, "700 rad/s is at or above the Nyquist frequency pi x rate_hz = 628.319"),
+    ],
+)
+def test_a_value_that_cannot_be_planned_is_refused_when_set_with_the_physical_reason(ros, params, words):
+    # issue 16: omega 1e5 rad/s at 1 kHz was accepted, then the next plan took 36.9 s
+    planner = ros.planner(**{"state.source": "assumed"})
+    ros.connected(planner, subscribers=1)
+    before = planner.config
+    (res,) = _set(ros, params)
+    assert not res.successful and words in res.reason, res.reason
+    assert planner.config == before  # nothing changed
+    assert ros.call(ros.probe.plan, goal_request(0.5)).plan.poses  # still plans with the old values
 
 
 def _start_planner(params_file: Path, timeout: float = 60.0) -> subprocess.CompletedProcess:

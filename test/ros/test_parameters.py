@@ -171,6 +171,8 @@ def test_what_rcl_refuses_our_reader_refuses(tmp_path, body):
         "    robust_order: 1.0\n",
         "    limits: {velocity_max: 1}\n",
         "    lockstep: 1\n",
+        "    state: {source: bogus}\n",  # old main: flexmotion plan planned, the node refused
+        "    trajectory: {early_arrival: optimun}\n",
         "    method: fixed_time\n    arrival_time: 6.0\n",  # valid: accepted by both
         "    joint_name: cart\n    plant: {coulomb_force: 0.1}\n",  # valid
     ],

@@ -81,3 +81,27 @@ def test_real_time_plant_holds_the_command_then_times_out(ros):
     assert v2 == v1  # zero force since: the speed no longer changes
     st = ros.probe.joint_states[-1]
     assert st.effort[0] == 0.0 and st.name[:2] == ["rigid_body", "mode_1"]
+
+
+def test_real_time_plant_reports_a_command_timeout_when_it_happens(ros):
+    """Issue 16: the force was cut 101 ms after the last command, but the count and warning came 10 s later."""
+    plant = ros.plant(lockstep=False, command_timeout=0.1)
+    wait_for(lambda: ros.probe.command_pub.get_subscription_count() >= 1, 10.0, "the plant")
+    ros.probe.command_pub.publish(messages.command(1.0))
+    wait_for(lambda: plant.received >= 1, 5.0, "the command")
+    t0 = time.monotonic()
+    wait_for(lambda: plant.timeouts >= 1, 2.0, "the timeout counted")
+    assert time.monotonic() - t0 < 1.0
+
+    def reported() -> bool:
+        with ros.probe.lock:
+            diags = list(ros.probe.diagnostics)
+        for d in reversed(diags):
+            st = messages.diagnostic_values(d, "flexmotion_plant: simulation", plant.get_fully_qualified_name())
+            if st is not None:
+                return st[2]["timeouts"] == "1"
+        return False
+
+    wait_for(reported, 1.0, "the timeout on /diagnostics")
+    time.sleep(0.5)
+    assert plant.timeouts == 1  # once, not on every timer tick

@@ -24,7 +24,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from flexmotion_ros.execution import lead_samples
-from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES
+from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, STOP_PREP_DUTY
 from flexmotion_ros.nodes.planner_node import PlannerNode
 
 from .conftest import FAST, NAMESPACE, goal_request, overrides, wait_for
@@ -160,31 +160,47 @@ def test_lifecycle_from_unconfigured_configure_refuses_a_bad_value_and_changes_n
 
 def test_a_stop_takes_effect_within_a_few_samples_from_a_ready_stop(ros):
     # old main: ~/stop planned from the state a full look-ahead ahead (>= 1.5 x the slowest plan + 20 ms:
-    # >= 10 samples at 200 Hz, 273 ms measured under load); now a ready stop starts a few samples after the request
+    # >= 10 samples at 200 Hz, 273 ms measured under load); now a ready stop starts a few samples after the request.
+    # A ready stop is a few samples ahead of the stream: on a loaded machine the stream may pass it before
+    # the request is served (then the stop is planned on demand); up to five moves are tried for one (a ready stop further than READY_STOP_LEADS look-aheads is not taken).
     planner = ros.planner(**ASSUMED)
     ros.connected(planner, subscribers=1)
     probe = ros.probe
-    resp = ros.call(probe.move, goal_request(1.0))
-    assert not resp.plan.header.frame_id.startswith("error")
-    move = planner.installed[-1]
     stops = planner.stop_preparer
-    wait_for(lambda: len(stops.ready()) >= 1, 10.0, "a ready stop")
-    k_req = planner.stream.snapshot()[0]
-    ans = ros.call(probe.stop, Trigger.Request())
-    assert ans.success, ans.message
-    stop = planner.installed[-1]
-    assert stop is not move and stop.info.target is None
+    for attempt in range(5):
+        target = 1.0 if attempt % 2 == 0 else 0.0
+        resp = ros.call(probe.move, goal_request(target))
+        assert not resp.plan.header.frame_id.startswith("error")
+        move = planner.installed[-1]
+        # the first stops a fresh process plans can be slow: the move may end before one is ready
+        wait_for(lambda move=move: stops.ready() or planner.stream.snapshot()[0] > move.end, 10.0, "a ready stop")
+        if not stops.ready():
+            ans, ready = Trigger.Response(message="the move ended before a stop was ready"), False
+            continue
+        k_req = planner.stream.snapshot()[0]
+        ans = ros.call(probe.stop, Trigger.Request())
+        assert ans.success, ans.message
+        wait_for(lambda move=move: planner.installed[-1] is not move, 10.0, "the stop installed")
+        stop = planner.installed[-1]
+        assert stop.info.target is None
+        ready = "; a ready stop" in ans.message
+        wait_for(lambda stop=stop: probe.command_values().size >= stop.end + 1, 10.0, "the stop and its hold")
+        time.sleep(0.1)
+        if ready:
+            break
+    assert ready, f"no ready stop was used in 5 moves: {ans.message}"
     latency = stop.start - k_req  # samples from the request to the stop's first command
     # the old main's look-ahead for the same planning time, its shortest possible stop latency
     old_lead = lead_samples(stops.plan_times, 0.05, 200.0)
-    bound = max(8, math.ceil(1.1 * max(stops.plan_times) * 200.0) + STOP_MARGIN_SAMPLES)
-    assert 1 <= latency <= bound and latency < old_lead, (latency, bound, old_lead, list(stops.plan_times))
+    # ready stops are one preparer cycle apart: a planning time / STOP_PREP_DUTY (the preparer plans at most
+    # that fraction of the time), and the earliest is at least STOP_MARGIN_SAMPLES ahead
+    cycle = math.ceil((1.0 + 1.0 / STOP_PREP_DUTY) * max(stops.plan_times) * 200.0)
+    bound = max(8, cycle + STOP_MARGIN_SAMPLES)
+    assert 1 <= latency <= bound and latency <= old_lead, (latency, bound, old_lead, list(stops.plan_times))
     np.testing.assert_array_equal(stop.states[0], move.state_at(stop.start))  # from exactly the predicted state
     assert stop.info.result.sampled is not None  # a verified sampled plan, as every plan
     np.testing.assert_allclose(stop.states[-1][1:], 0.0, atol=1e-6)  # at rest: velocity and every mode
     assert stop.end <= move.end  # never later than the move itself would have come to rest
-    wait_for(lambda: probe.command_values().size >= stop.end + 1, 10.0, "the stop and its hold")
-    time.sleep(0.1)
     u = probe.command_values()
     assert u[-1] == 0.0 and u.size == stop.end + 1
     assert np.array_equal(u[stop.start : stop.end], stop.commands)

@@ -8,12 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError, GoalError
+from ..errors import ConfigError, GoalError, ModelError
 from ..model.boundary import MoveProblem
 from ..parameters import option
 from ..results import SampledProfile
 from ..simulation.exact import PiecewiseConstant
 from ..time_optimal.rigid_body import rigid_time
+from ..tolerances import MAX_SAMPLES
 
 
 def required_option(config: PlannerConfig, name: str, method: str, allowed: str | None = None):
@@ -24,17 +25,68 @@ def required_option(config: PlannerConfig, name: str, method: str, allowed: str 
     return config.options[name]
 
 
-def check_move_budget(config: PlannerConfig, problem: MoveProblem) -> float:
-    """Refuse a move longer than ``config.max_move_duration_s`` before planning it; return its lower bound (s).
+#: Largest ``|c| T`` (viscous relaxations of the rigid body within a move)
+#: planned: the final velocity's rounding grows like ``eps |c| T`` (measured:
+#: 3.5e-9 relative at ``|c| T = 2.3e8``, 1e-10 at ``7e7``).
+MAX_VISCOUS_SPAN = 3e7
+
+
+def check_plannable(config: PlannerConfig, rate_hz: float | None = None) -> float:
+    """Refuse, before any goal, a configuration no sampled plan can serve; return the rate checked (Hz).
+
+    For a node to call when parameters are set (and :func:`plan_move` calls
+    it whenever a rate is given).  Costs microseconds.  Refused:
+
+    * a mode at or above the Nyquist frequency of the command rate
+      (``omega_d dt >= pi``): commands held for ``dt`` cannot steer it (at
+      ``omega_d dt = k pi`` the sampled mode is not even controllable, and
+      above it the rate aliases it onto a slower one).
+
+    Parameters
+    ----------
+    config : PlannerConfig
+        The validated configuration (model, ``u_max``, ``rate_hz``, budget).
+    rate_hz : float, optional
+        The command rate (Hz); default ``config.rate_hz``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``rate_hz``, the mode and the smallest rate that serves it.
+    """
+    rate = float(rate_hz) if rate_hz else config.rate_hz
+    wd = np.asarray(config.model.omega_d, dtype=float)
+    if wd.size:
+        i = int(np.argmax(wd))
+        if wd[i] / rate >= math.pi:
+            raise ConfigError(
+                "rate_hz",
+                f"mode {i + 1} at {wd[i]:.6g} rad/s is at or above the Nyquist frequency pi rate_hz = "
+                f"{math.pi * rate:.6g} rad/s of {rate:g} Hz (omega dt = {wd[i] / rate:.4g} >= pi): commands held "
+                f"for 1/rate_hz cannot steer it; set rate_hz above {wd[i] / math.pi:.6g} Hz (better 10x that)",
+            )
+    return rate
+
+
+def check_move_budget(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> float:
+    """Refuse a move longer than the budget before planning it; return its lower bound (s).
 
     The bound is the rigid body's own minimum time (closed form, a lower bound
     for the whole machine), so the check costs microseconds and refuses only
-    moves that certainly exceed the budget (e.g. ``--goal 1e300``).
+    moves that certainly exceed a budget (e.g. ``--goal 1e300``):
+
+    * ``config.max_move_duration_s`` (s);
+    * ``|c| T`` at most :data:`MAX_VISCOUS_SPAN` (a viscous term this stiff
+      cannot be brought to rest in double precision);
+    * with ``rate_hz``: :data:`~flexmotion_ros.core.tolerances.MAX_SAMPLES`
+      commands (every sampled planner's horizon) and :func:`check_plannable`.
 
     Raises
     ------
     GoalError
-        Naming ``goal`` and the budget ``max_move_duration_s``.
+        Naming ``goal`` and the budget ``max_move_duration_s`` or the sample budget.
+    ConfigError
+        From :func:`check_plannable` (a mode above the Nyquist frequency).
     """
     T = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
     if not T <= config.max_move_duration_s:
@@ -43,6 +95,22 @@ def check_move_budget(config: PlannerConfig, problem: MoveProblem) -> float:
             f"the move needs at least {T:.4g} s (rigid-body minimum time), over the budget max_move_duration_s = "
             f"{config.max_move_duration_s:g} s; move less far or raise max_move_duration_s",
         )
+    stiff = abs(problem.model.c) * T
+    if stiff > MAX_VISCOUS_SPAN:
+        raise ModelError(
+            "model.c",
+            f"the rigid body's velocity relaxes in 1/|c| = {1.0 / abs(problem.model.c):.3g} s, {stiff:.3g} times "
+            f"within the move's {T:.4g} s (over {MAX_VISCOUS_SPAN:.0e}): double precision cannot bring it exactly "
+            "to rest (error ~1e-16 |c| T); use a smaller |c| or a shorter move",
+        )
+    if rate_hz:
+        rate = check_plannable(config, rate_hz)
+        if T * rate > MAX_SAMPLES:
+            raise GoalError(
+                "goal",
+                f"the move needs at least {T:.4g} s (rigid-body minimum time): over {MAX_SAMPLES:.0e} samples at "
+                f"{rate:g} Hz, the sample budget; move less far or lower rate_hz",
+            )
     return T
 
 

@@ -25,6 +25,7 @@ from ..parameters import METHOD_OPTIONS, ParameterInfo
 from ..results import PlanResult
 from ..simulation.prepared import PreparedMove, prepare
 from . import fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
+from .already_there import plan_already_there
 from .common import check_move_budget
 
 Planner = Callable[[PlannerConfig, "MoveProblem | PreparedMove", "float | None"], PlanResult]
@@ -99,8 +100,12 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     if method is None:
         raise ConfigError("method", f"must be one of {sorted(METHODS)}, got {config.method!r}")
     rate = check_rate_hz(rate_hz) if rate_hz else None
-    check_move_budget(config, problem.problem if isinstance(problem, PreparedMove) else problem)
-    result = method.planner(config, prepare(problem), rate)
+    move = prepare(problem)
+    check_move_budget(config, move.problem, rate)
+    # a move shorter than the resolution is answered "already there", whatever the method
+    result = plan_already_there(config, move, rate)
+    if result is None:
+        result = method.planner(config, move, rate)
     if result.sampled is not None and result.sampled.commands.size:
         peak = float(np.max(np.abs(result.sampled.commands)))
         if peak > problem.u_max:  # the bound is never exceeded, whatever the method: a planner fault

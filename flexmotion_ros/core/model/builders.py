@@ -163,7 +163,14 @@ def two_mass(m1: float, m2: float, k: float, d: float = 0.0) -> BuiltModel:
     )
 
 
-def crane(cart_mass: float, payload_mass: float, cable_length: float, g: float = 9.81, zeta: float = 0.0) -> BuiltModel:
+def crane(
+    cart_mass: float | None,
+    payload_mass: float | None,
+    cable_length: float,
+    g: float = 9.81,
+    zeta: float = 0.0,
+    input: str = "force",
+) -> BuiltModel:
     """Overhead crane: force on the cart, payload on a cable (small swing angles).
 
     Parameters
@@ -176,6 +183,10 @@ def crane(cart_mass: float, payload_mass: float, cable_length: float, g: float =
         Gravity (m/s^2).
     zeta : float
         Damping ratio of the swing (air drag), in ``[0, 1)``.
+    input : str
+        ``"force"`` (N on the cart) or ``"acceleration"`` (the cart's
+        acceleration, m/s^2, imposed by a velocity- or position-controlled
+        drive: see :func:`crane_acceleration`; the masses are then not used).
 
     Notes
     -----
@@ -183,6 +194,9 @@ def crane(cart_mass: float, payload_mass: float, cable_length: float, g: float =
     equations give ``omega^2 = g (M + m) / (M L)``, ``s'' + omega^2 s = -f / M``,
     and the centre of mass ``p`` moves as ``p'' = f / (M + m)``.
     """
+    kind = _input_kind(input)
+    if kind == "acceleration":
+        return crane_acceleration(cable_length, g, zeta)
     M = check_positive("cart_mass", cart_mass, "kg")
     mp = check_positive("payload_mass", payload_mass, "kg")
     L = check_positive("cable_length", cable_length, "m")
@@ -196,6 +210,80 @@ def crane(cart_mass: float, payload_mass: float, cable_length: float, g: float =
         modal_to_physical=np.array([[1.0, -mp / mtot], [1.0, M / mtot]]),
         kind="crane",
         parameters={"cart_mass": M, "payload_mass": mp, "cable_length": L, "g": gg, "zeta": float(zeta)},
+    )
+
+
+#: The forms of a builder's input: the actuator's force, or the acceleration a servo imposes on the driven body.
+INPUT_KINDS = ("force", "acceleration")
+
+
+def _input_kind(value: str) -> str:
+    if value not in INPUT_KINDS:
+        raise ModelError("input", f"must be one of {list(INPUT_KINDS)}, got {value!r}")
+    return value
+
+
+def crane_acceleration(cable_length: float, g: float = 9.81, zeta: float = 0.0) -> BuiltModel:
+    """Overhead crane whose cart's acceleration is the input (velocity- or position-controlled drive).
+
+    Parameters
+    ----------
+    cable_length : float
+        Cable length ``L`` (m).
+    g : float
+        Gravity (m/s^2).
+    zeta : float
+        Damping ratio of the swing, in ``[0, 1)``.
+
+    Notes
+    -----
+    With the cart's acceleration ``a`` prescribed, the pendulum's linearised
+    equation is ``theta'' = -(g / L) theta - a / L`` whatever the masses (the
+    drive supplies whatever force that takes).  The rigid body is the cart
+    itself (``p``: cart position, ``b0 = 1``, ``c = 0``: ``p'' = a``) and the
+    mode coordinate is the payload's horizontal offset from the cart
+    ``s = L theta`` (m): ``s'' = -(g / L) s - a``, so ``omega = sqrt(g / L)``
+    and ``b = -1`` (``-1 / L`` in the angle).  At rest ``s = 0`` and the
+    payload is above the goal.  ``u_max`` is then the cart's acceleration
+    bound (m/s^2).
+    """
+    L = check_positive("cable_length", cable_length, "m")
+    gg = check_positive("g", g, "m/s^2")
+    w = math.sqrt(gg / L)
+    model = ModalModel(b0=1.0, c=0.0, omega=(w,), zeta=(float(zeta),), b=(-1.0,), names=("swing",))
+    return BuiltModel(
+        model=model,
+        coordinates=("cart", "payload"),
+        modal_to_physical=np.array([[1.0, 0.0], [1.0, 1.0]]),
+        kind="crane",
+        parameters={"cable_length": L, "g": gg, "zeta": float(zeta), "input": "acceleration"},
+        notes={"input": "cart acceleration (m/s^2)", "mode": "payload offset from the cart (m)"},
+    )
+
+
+def two_mass_acceleration(m2: float, k: float, d: float = 0.0) -> BuiltModel:
+    """Two masses and a spring, mass 1's acceleration imposed (a servo-driven base), mass 2 carried.
+
+    ``s = x1 - x2`` (spring deflection, m): ``m2 x2'' = k s + d s'``, so
+    ``s'' = a - (k / m2) s - (d / m2) s'``: ``omega = sqrt(k / m2)``,
+    ``zeta = d / (2 sqrt(k m2))``, ``b = 1``; the rigid body is mass 1
+    (``b0 = 1``).  Mass 1's own mass does not enter.
+    """
+    m = check_positive("m2", m2, "kg")
+    kk = check_positive("k", k, "N/m")
+    dd = _nonneg("d", d)
+    w = math.sqrt(kk / m)
+    z = dd / (2.0 * math.sqrt(kk * m))
+    if z >= 1.0:
+        raise ModelError("d", f"gives damping ratio {z:.3g} >= 1 (overdamped); reduce it")
+    model = ModalModel(b0=1.0, c=0.0, omega=(w,), zeta=(z,), b=(1.0,))
+    return BuiltModel(
+        model=model,
+        coordinates=("x1", "x2"),
+        modal_to_physical=np.array([[1.0, 0.0], [1.0, -1.0]]),
+        kind="two_mass",
+        parameters={"m2": m, "k": kk, "d": dd, "input": "acceleration"},
+        notes={"input": "acceleration of mass 1 (m/s^2)", "mode": "spring deflection x1 - x2 (m)"},
     )
 
 

@@ -76,8 +76,9 @@ def plan_fixed_time_zoh(
         return out
     system = move.response
     x0 = move.x0
-    scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, K * dt, 33))), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
+    # LP units: the move's error scale (33 uniform instants missed a fast, damped
+    # mode on a long move: units of 1e-9 of its excursion, an ill-posed LP)
+    scale = move.error_scale(K * dt)
     G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
     w = -system.expm_x(K * dt, x0) / scale
     nu = -np.asarray(continuous.certificate.costate_final, float) * scale

@@ -6,16 +6,18 @@ import math
 import time
 
 import numpy as np
-from scipy.optimize import linprog
-from scipy.sparse import csr_matrix
 
 from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile, SampledProfile
+from ..simulation.error_scale import state_scale
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.robust import RobustModalResponse
 from .check import AugmentedSystem, verified_samples
-from .lp_tools import least_norm_correction
+from .zoh import search_samples
+
+#: Sample counts tried above the continuous robust move's ``ceil(T / dt)``.
+MAX_EXTRA_SAMPLES = 200
 
 
 def plan_robust_time_optimal_zoh(
@@ -23,12 +25,14 @@ def plan_robust_time_optimal_zoh(
 ) -> SampledProfile:
     """Fewest zero-order-hold samples keeping the robust constraints exactly (nominal model and derivatives).
 
-    Samples away from the continuous switches keep the continuous level; a
-    linear program sets those in windows around the switches (windows grow,
-    then the sample count, until feasible); an exact least-norm correction
-    follows and the result is checked by the augmented matrix-exponential
-    simulation.  ``K_lo = ceil(T / dt)`` is a proved lower bound (every
-    sequence is a continuous input), so ``minimal`` holds if ``K_lo`` works.
+    The nominal planner's search (:func:`~.zoh.search_samples`) on the
+    augmented system: samples away from the continuous switches saturate with
+    the sign of the robust optimum's switching function, windowed peak LPs
+    around the switches are accepted only if their dual certifies them over
+    every sample (windows grow otherwise), a count is proved infeasible by
+    weak duality, an exact least-norm correction follows and the result is
+    checked by the augmented matrix-exponential simulation.  ``K_lo = ceil(T
+    / dt)`` is a proved lower bound (every sequence is a continuous input).
 
     Every returned sequence passes the one exact sampled check
     (:func:`~flexmotion_ros.core.sampled.check.verified_samples`: nominal
@@ -59,42 +63,24 @@ def plan_robust_time_optimal_zoh(
     if T / dt > 5e6:
         raise InputError("rate_hz", f"a {T:.3g} s move at {rate_hz:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
-    scale = np.abs(xa0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T, 33))), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
-    gam = system.input_integral(np.array([dt]))[0]
-    cont = profile.input()
-    tight = um * (1.0 - 1e-6)  # leave room for the exact correction after the LP's tolerance
-    for K in range(K_lo, K_lo + 50):
-        G = system.expm_x_many(dt * np.arange(K)[::-1], gam) / scale
-        w = -system.expm_x(K * dt, xa0) / scale
-        mids = dt * (np.arange(K) + 0.5)
-        fixed_level = np.where(cont(mids) >= 0.0, um, -um)
-        near = np.zeros(K, dtype=bool)
-        for ts in profile.switch_times:
-            near[min(int(ts / dt), K - 1)] = True
-        width = 2
-        while True:
-            free = np.convolve(near.astype(float), np.ones(2 * width + 1), mode="same") > 0.0
-            free[K - width :] = True
-            F = np.flatnonzero(free)
-            rhs = w - G[~free].T @ fixed_level[~free]
-            res = linprog(
-                np.zeros(F.size), A_eq=csr_matrix(G[F].T), b_eq=rhs, bounds=[(-tight, tight)] * F.size, method="highs"
-            )
-            if res.status == 0 or free.all():
-                break
-            width *= 4
-        if res.status != 0:
-            continue
-        u = fixed_level.copy()
-        u[F] = res.x
-        cmds = least_norm_correction(G, w, u, um)
-        if cmds is None:
-            continue
-        try:
-            return verified_samples(
-                move, cmds, dt, "robust_time_optimal", K == K_lo, K_lo, profile, None, t0, augmented=aug
-            )
-        except SolverError:  # misses the nominal or the augmented target: one more sample
-            continue
-    raise SolverError(f"robust time-optimal: no sampled sequence at {rate_hz:g} Hz found; nothing is returned")
+    # LP units: how large each augmented state gets (uniform and geometric
+    # instants: on a long move 33 uniform ones missed a fast, damped mode's
+    # derivative states, whose units then came out 1e-160: G overflowed)
+    scale = state_scale(system, xa0, um, T)
+    # the continuous robust optimum's dual direction guesses the saturated samples
+    costate = np.asarray(profile.certificate.costate_final, dtype=float)
+    nu = -costate * scale if costate.size == scale.size else None
+
+    def finish(cmds: np.ndarray, minimal: bool, lower: int) -> SampledProfile:
+        return verified_samples(move, cmds, dt, "robust_time_optimal", minimal, lower, profile, None, t0, augmented=aug)
+
+    # the nominal planner's fewest-samples search on the augmented system:
+    # windowed peak LPs accepted by their dual over every sample, each count
+    # proved infeasible by weak duality, the sample vectors built once
+    found = search_samples(system, xa0, um, scale, dt, K_lo, K_lo + MAX_EXTRA_SAMPLES, nu, finish)
+    if found is None:
+        raise SolverError(
+            f"robust time-optimal: no sampled sequence at {rate_hz:g} Hz within {MAX_EXTRA_SAMPLES} samples of "
+            "the continuous robust move; nothing is returned"
+        )
+    return found

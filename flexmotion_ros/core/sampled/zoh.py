@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from scipy import sparse
@@ -83,6 +84,17 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     nF = F.size
     c_fix = (G[fixed] * signs[fixed, None]).sum(axis=0)
     A_eq = np.column_stack([G[F].T, -w])
+    b_eq = -c_fix
+    # equilibrate the rows (one per state): HiGHS's feasibility tolerance is
+    # absolute, and a row of 1e-12 (u_max 1e12: every sample moves a state by
+    # far more than the move) would be met by any point.  Row scaling leaves
+    # the solution unchanged; the multipliers scale back below.
+    rows = np.maximum(np.max(np.abs(A_eq), axis=1), np.abs(b_eq))
+    rows = np.where(rows > 0.0, rows, 1.0)
+    # handed over as CSC: scipy's linprog otherwise converts the dense rows
+    # itself, slower than HiGHS solves a full-horizon LP (measured 2.4x in all)
+    A_eq = sparse.csc_matrix(A_eq / rows[:, None])
+    b_eq = b_eq / rows
     cost = np.zeros(nF + 1)
     cost[-1] = -1.0
     bounds = np.empty((nF + 1, 2))
@@ -92,9 +104,9 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     # n dense rows and box bounds: HiGHS's presolve finds nothing to remove and
     # costs ~30 % of the solve; it runs only if the dual simplex alone reports
     # a numerical difficulty (status 4)
-    res = linprog(cost, A_eq=A_eq, b_eq=-c_fix, bounds=bounds, method="highs-ds", options={"presolve": False})
+    res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs-ds", options={"presolve": False})
     if res.status == 4:
-        res = linprog(cost, A_eq=A_eq, b_eq=-c_fix, bounds=bounds, method="highs")
+        res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status == 3:  # unbounded s (t* = 0 numerically): the min-t form decides
         return _solve_peak_lp_rows(G, w, signs, free)
     if res.status != 0:
@@ -105,7 +117,7 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     t = 1.0 / s_star
     u = signs * t
     u[F] = res.x[:nF] * t
-    return u, t, t * np.asarray(res.eqlin.marginals, dtype=float)
+    return u, t, t * np.asarray(res.eqlin.marginals, dtype=float) / rows
 
 
 def _solve_peak_lp_rows(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
@@ -156,7 +168,9 @@ def _least_norm_solver(GS: np.ndarray):
     rank cut-off is lstsq's default: ``eps * max(GS.shape) * s_max``.
     """
     Q, R = qr(GS, mode="economic", check_finite=False)
-    Ur, sv, Vt = np.linalg.svd(R)
+    # thin SVD: with fewer samples than states (a move of a few samples) R is
+    # wide, and the full SVD's Vt would have more rows than singular values
+    Ur, sv, Vt = np.linalg.svd(R, full_matrices=False)
     keep = sv > np.finfo(float).eps * max(GS.shape) * (sv[0] if sv.size else 0.0)
     QU = (Q @ Ur)[:, keep]
     inv = 1.0 / sv[keep]
@@ -220,9 +234,6 @@ def plan_time_optimal_zoh(
     problem = move.problem
     if continuous is None:
         continuous = move.continuous if move.continuous is not None else plan_time_optimal(move)
-    system = move.response
-    x0 = move.x0
-    um = problem.u_max
     T = continuous.duration
     if T == 0.0:
         states = simulate_samples(problem.model, problem.x0, np.empty(0), dt)
@@ -230,16 +241,111 @@ def plan_time_optimal_zoh(
     if T / dt > 5e6:
         raise GoalError("rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over 5e6 samples; lower the rate")
     K_lo = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
-    # signs of the continuous optimum at the sample midpoints, aligned at the end
-    scale = move.error_scale(T)
+    # the scale of the sampled move (K_lo dt >= T): for a move far shorter than
+    # a sample (u_max 1e12) the continuous T would leave the LP badly scaled
+    scale = move.error_scale(K_lo * dt)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
-    if not np.any(nu):
+    found = fewest_samples(move, dt, K_lo, K_lo + MAX_EXTRA_SAMPLES, nu, continuous, t0)
+    if found is None:
+        raise SolverError(
+            f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
+        )
+    return found
+
+
+def fewest_samples(
+    move: PreparedMove,
+    dt: float,
+    K_lo: int,
+    K_max: int,
+    nu: np.ndarray | None,
+    continuous: BangBangProfile | None,
+    t0: float,
+) -> SampledProfile | None:
+    """The fewest samples in ``[K_lo, K_max]`` reaching rest exactly, or None if none of them does.
+
+    Parameters
+    ----------
+    move : PreparedMove
+        The move.
+    dt : float
+        Sample period (s).
+    K_lo : int
+        A proved lower bound on the sample count (``ceil(T / dt)`` for a
+        proved lower bound ``T`` on the continuous optimum, s).
+    K_max : int
+        The last count tried.
+    nu : ndarray or None
+        A dual direction (scaled by ``move.error_scale(K_lo dt)``) whose
+        switching-function signs guess the saturated samples; None: none known
+        (every sample is free once the windows have grown).
+    continuous : BangBangProfile or None
+        Recorded in the result.
+    t0 : float
+        ``time.perf_counter()`` at the start of planning (s).
+
+    Returns
+    -------
+    SampledProfile or None
+        ``minimal`` when every count below it is proved infeasible (the
+        continuous bound, or a weak-duality bound above ``u_max``).
+    """
+    system = move.response
+    scale = move.error_scale(K_lo * dt)
+
+    def finish(cmds: np.ndarray, minimal: bool, lower: int) -> SampledProfile:
+        return finish_sampled(move, cmds, dt, continuous, minimal, lower, t0)
+
+    return search_samples(system, move.x0, move.u_max, scale, dt, K_lo, K_max, nu, finish)
+
+
+def search_samples(
+    system,
+    x0: np.ndarray,
+    u_max: float,
+    scale: np.ndarray,
+    dt: float,
+    K_lo: int,
+    K_max: int,
+    nu: np.ndarray | None,
+    finish: Callable[[np.ndarray, bool, int], SampledProfile],
+) -> SampledProfile | None:
+    """The fewest-samples search of :func:`fewest_samples` for any linear system (e.g. the robust augmented one).
+
+    Parameters
+    ----------
+    system : ModalResponse or compatible
+        ``input_integral``, ``expm_x`` and ``expm_x_many`` of the system the
+        sequence must bring to its origin.
+    x0 : ndarray
+        Its shifted initial state.
+    u_max : float
+        Bound on every command (N).
+    scale : ndarray
+        Per-state unit of the linear programs (state units).
+    dt : float
+        Sample period (s).
+    K_lo, K_max : int
+        Proved lower bound on the count; last count tried.
+    nu : ndarray or None
+        Scaled dual direction guessing the saturated samples' signs.
+    finish : callable
+        ``finish(commands, minimal, lower_bound) -> SampledProfile``: the
+        exact checks; a :class:`SolverError` from it tries one more sample.
+
+    The sample vectors ``g_m`` (``m`` samples to go) do not depend on the
+    count, so they are built once for ``K_max`` and sliced: the work per
+    count is the linear program alone, not a rebuild of ``K x n`` responses.
+    """
+    um = u_max
+    G_all = sample_vectors(system, K_max, dt) / scale  # rows: m = samples to go
+    if nu is not None and not np.any(nu):
         nu = None
-    proved_infeasible_below = K_lo  # every K < K_lo is infeasible (continuous bound)
+    proved_infeasible_below = K_lo  # every K < K_lo is infeasible (the given bound)
     K = K_lo
-    while K <= K_lo + MAX_EXTRA_SAMPLES:
-        G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+    while K <= K_max:
+        G = G_all[:K]
         w = -system.expm_x(K * dt, x0) / scale
         S = G @ nu if nu is not None else np.ones(K)
         signs = np.where(S >= 0.0, 1.0, -1.0)
@@ -268,7 +374,14 @@ def plan_time_optimal_zoh(
                 proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
                 K += 1
                 continue
-            raise SolverError(f"sampled planner: linear program failed at {K} samples")
+            # the LP failed numerically (as few samples as states: a square,
+            # ill-conditioned system); its least-norm solution, if within the
+            # bound, goes to the exact checks; otherwise one more sample
+            peak = float(np.max(np.abs(u_ls)))
+            if not peak <= um:
+                K += 1
+                continue
+            result = (u_ls, peak, -math.inf, nu)
         u, t_star, bound, nu_lp = result
         if t_star <= um * (1.0 + LP_RTOL):  # the exact correction and checks decide
             u_in = u * (um / max(t_star, um))
@@ -277,16 +390,15 @@ def plan_time_optimal_zoh(
             for cand in (correct_exactly(G, w, u_in, um), np.clip(u_in, -um, um)):
                 if cand is not None and np.max(np.abs(G.T @ cand - w)) <= 1e-12 * max(float(np.max(np.abs(w))), 1.0):
                     cmds = cand[::-1].copy()  # m = samples to go -> forward order
-                    return finish_sampled(
-                        move, cmds, dt, continuous, K == proved_infeasible_below, proved_infeasible_below, t0
-                    )
+                    try:
+                        return finish(cmds, K == proved_infeasible_below, proved_infeasible_below)
+                    except SolverError:  # the exact check decides: one more sample
+                        pass
         if bound > um * (1.0 + BOUND_RTOL):
             proved_infeasible_below = K + 1  # infeasible at K => at every K' < K
         nu = nu_lp
         K += 1
-    raise SolverError(
-        f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
-    )
+    return None
 
 
 def finish_sampled(

@@ -136,8 +136,10 @@ def insensitivity(
         end = span[1] if direction > 0 else span[0]
         n = int(abs(end - nominal) / step)
         inside = nominal
-        for start in range(1, n + 1, 256):  # chunks: the edge is usually near
-            grid = nominal + direction * step * np.arange(start, min(start + 256, n + 1))
+        start, size = 1, 16
+        while start <= n:  # growing chunks: the edge is usually near, and a long command costs per ratio
+            grid = nominal + direction * step * np.arange(start, min(start + size, n + 1))
+            start, size = start + size, min(2 * size, 256)
             V = np.asarray(vibration(grid))
             out = np.flatnonzero(V > lim)
             if out.size:
@@ -154,9 +156,38 @@ def insensitivity(
     return Insensitivity(tolerance, edge(-1), edge(+1))
 
 
+def ratio_vibration(times, amplitudes, omega, zeta, ratios) -> np.ndarray:
+    """:func:`impulse_vibration` of modes ``(ratio * omega, zeta)`` for each ratio: shape ``(len(ratios), n)``.
+
+    On a uniform grid of ratios the exponentials are advanced by one factor
+    per step (``e^{(r + h) c} = e^{r c} e^{h c}``, ``c`` per impulse and mode)
+    instead of recomputed: a shaped 8-mode command has ~20,000 impulses, and
+    the insensitivity search evaluates hundreds of ratios (measured: 92 % of
+    an 8-mode ZVD plan).  Other grids, and single ratios (the edge
+    refinement), are evaluated directly.
+    """
+    r = np.atleast_1d(np.asarray(ratios, dtype=float))
+    w = np.atleast_1d(np.asarray(omega, dtype=float))
+    z = np.broadcast_to(np.asarray(zeta, dtype=float), w.shape)
+    h = np.diff(r)
+    if r.size < 8 or not np.allclose(h, h[0], rtol=1e-9, atol=0.0):
+        return impulse_vibration(times, amplitudes, r[:, None] * w, z)
+    t = np.asarray(times, dtype=float)
+    a = np.asarray(amplitudes, dtype=float)
+    c = w[:, None] * (z[:, None] * (t - t[-1]) + 1j * np.sqrt(1.0 - z[:, None] ** 2) * t)  # (n, impulses)
+    step = np.exp(h[0] * c)
+    cur = a * np.exp(r[0] * c)
+    out = np.empty((r.size, w.size))
+    for j in range(r.size):
+        out[j] = np.abs(cur.sum(axis=-1))
+        cur *= step
+    return out
+
+
 def shaper_insensitivity(shaper: Shaper, tolerance: float = 0.05, mode: int = 0) -> Insensitivity:
     """Insensitivity of a shaper to the frequency of one mode (Singhose's figure of merit)."""
-    return insensitivity(lambda r: shaper.vibration(shaper.omega[mode] * r, shaper.zeta[mode]), tolerance)
+    w, z = shaper.omega[mode], shaper.zeta[mode]
+    return insensitivity(lambda r: ratio_vibration(shaper.times, shaper.amplitudes, w, z, r)[:, 0], tolerance)
 
 
 def command_insensitivity(
@@ -166,11 +197,13 @@ def command_insensitivity(
     if not model.n_modes:
         return Insensitivity(tolerance, 0.0, np.inf)
 
+    ref = u.max_abs() if u_ref is None else float(u_ref)
+    if not ref > 0.0:
+        return insensitivity(lambda r: np.zeros(np.size(r)), tolerance)
+    t, a = command_impulses(u)
+
     def V(r):
-        return np.max(
-            command_vibration(u, np.asarray(r)[:, None] * np.asarray(model.omega), np.asarray(model.zeta), u_ref),
-            axis=-1,
-        )
+        return np.max(ratio_vibration(t, a / ref, model.omega, model.zeta, r), axis=-1)
 
     return insensitivity(V, tolerance)
 

@@ -45,7 +45,7 @@ from ..errors import GoalError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import SampledProfile
 from ..sampled.check import verified_samples
-from ..sampled.lp_tools import least_norm_correction
+from ..sampled.lp_tools import least_norm_correction, sample_vectors
 from ..simulation.exact import (
     PiecewiseConstant,
     modal_amplitudes,
@@ -360,12 +360,15 @@ def sample_command(
             problem, np.empty(0), dt, states, 0.0, 0.0, True, 0, continuous, time.perf_counter() - t0, method
         )
     K0 = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
-    scale = np.abs(x0) + um * np.max(np.abs(system.input_integral(np.linspace(0.0, T + dt, 33))), axis=0)
-    scale = np.where(scale > 0.0, scale, 1.0)
-    gam = system.input_integral(np.array([dt]))[0]
+    # units of the correction: the move's error scale (uniform and geometric
+    # instants; 33 uniform ones missed a fast, damped mode on a long move, whose
+    # units came out ~1e-9 of its real excursion and wrecked the correction)
+    scale = move.error_scale(T + dt)
+    # g_m (m samples to go) do not depend on K: built once, sliced per count
+    G_all = sample_vectors(system, K0 + MAX_EXTRA_SAMPLES, dt) / scale
     for K in range(K0, K0 + MAX_EXTRA_SAMPLES + 1):
         samples = sample_average(u, dt, K)
-        G = system.expm_x_many(dt * np.arange(K)[::-1], gam) / scale  # row k: sample k's effect at K dt
+        G = G_all[:K][::-1]  # row k: sample k's effect at K dt
         w = -system.expm_x(K * dt, x0) / scale
         cmds = least_norm_correction(G, w, samples, um)
         if cmds is None:

@@ -167,13 +167,55 @@ def simulate_samples(model_or_AB, x0, samples, dt: float, include_position: bool
     A, B = _system(model_or_AB, include_position)
     Phi, Gam = step_matrices(A, B, dt)
     samples = np.asarray(samples, dtype=float)
-    out = np.empty((samples.size + 1, A.shape[0]))
+    n = A.shape[0]
+    out = np.empty((samples.size + 1, n))
     x = np.array(x0, dtype=float)
     out[0] = x
-    for k, uk in enumerate(samples):
-        x = Phi @ x + Gam * uk
+    if samples.size < 4 * SAMPLE_BLOCK:
+        for k, uk in enumerate(samples):
+            x = Phi @ x + Gam * uk
+            out[k + 1] = x
+        return out
+    # blocks of SAMPLE_BLOCK samples: within a block the states are
+    # Phi^(i+1) x_start + sum_{j<=i} Phi^(i-j) Gamma u_j, the same products the
+    # step-by-step recursion forms (powers of the one expm), done for all
+    # blocks at once; only the block starts are propagated in sequence
+    P, H = _block_powers(Phi, Gam, SAMPLE_BLOCK)
+    nb, rest = divmod(samples.size, SAMPLE_BLOCK)
+    U = samples[: nb * SAMPLE_BLOCK].reshape(nb, SAMPLE_BLOCK)
+    idx = np.arange(SAMPLE_BLOCK)
+    lag = idx[:, None] - idx[None, :]
+    T = np.where((lag >= 0)[:, :, None], H[np.clip(lag, 0, None)], 0.0)  # (i, j, n): Phi^(i-j) Gamma
+    m = SAMPLE_BLOCK
+    forced = (U @ T.transpose(1, 0, 2).reshape(m, m * n)).reshape(nb, m, n)
+    starts = np.empty((nb, n))
+    last = P[-1]
+    for b in range(nb):
+        starts[b] = x
+        x = last @ x + forced[b, -1]
+    free = starts @ P.transpose(2, 0, 1).reshape(n, m * n)  # row b: (Phi^(i+1) x_b)_i, flattened
+    out[1 : nb * m + 1] = (free.reshape(nb, m, n) + forced).reshape(-1, n)
+    for k in range(nb * SAMPLE_BLOCK, nb * SAMPLE_BLOCK + rest):
+        x = Phi @ x + Gam * samples[k]
         out[k + 1] = x
     return out
+
+
+#: Samples per block of :func:`simulate_samples` (longer sequences only).
+SAMPLE_BLOCK = 32
+
+
+def _block_powers(Phi: np.ndarray, Gam: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """``Phi^1..Phi^m`` (shape ``(m, n, n)``) and ``Phi^0 Gamma..Phi^(m-1) Gamma`` (``(m, n)``), by products."""
+    n = Phi.shape[0]
+    P = np.empty((m, n, n))
+    H = np.empty((m, n))
+    P[0] = Phi
+    H[0] = Gam
+    for i in range(1, m):
+        P[i] = Phi @ P[i - 1]
+        H[i] = Phi @ H[i - 1]
+    return P, H
 
 
 def modal_amplitudes(model: ModalModel, x) -> np.ndarray:

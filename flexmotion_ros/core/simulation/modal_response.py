@@ -203,19 +203,22 @@ class ModalResponse:
     def _trig_basis(self, tau: np.ndarray) -> np.ndarray:
         """``[e^{-sig tau} sin(wd tau), e^{-sig tau} cos(wd tau)]`` per mode, shape ``(len, 2N)``.
 
-        The last large array is cached by identity: the planners evaluate the
-        switching function on one grid many times while ``T`` is fixed.
+        Cached by identity for read-only arrays (the planners' grids,
+        :func:`~flexmotion_ros.core.time_optimal.switching.sample_grid`), the
+        last two: the planners evaluate the switching function on one grid
+        many times while ``T`` is fixed.  Other arrays (subsets, bisection
+        midpoints) are not cached, so they cannot evict a grid's basis.
         """
-        if tau is self._basis_tau:
-            return self._basis_val
+        cache = self.__dict__.setdefault("_basis_cache", [])
+        for key, val in cache:
+            if key is tau:
+                return val
         E, C, Sn = self._mode_trig(tau)
         val = np.concatenate([E * Sn, E * C], axis=1)
-        if tau.size >= 32:
-            self._basis_tau, self._basis_val = tau, val
+        if tau.size >= 32 and not tau.flags.writeable:
+            cache.insert(0, (tau, val))
+            del cache[2:]
         return val
-
-    _basis_tau: np.ndarray | None = None
-    _basis_val: np.ndarray | None = None
 
     def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False, order: int | None = None):
         """``S(tau) = nu^T e^{A tau} B`` and its derivatives in ``tau``.
@@ -326,6 +329,38 @@ class ModalResponse:
             amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm) * self.w**order
             bound = bound + np.exp(-np.outer(tau, self.sig)) @ amp
         return bound
+
+    def switching_zero_free(self, nu: np.ndarray, a: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
+        """Which intervals ``[a, b]`` are proved to hold no zero of ``S`` (bool per interval).
+
+        ``S`` is the rigid part ``R`` (monotone in ``tau``: its derivative
+        ``b0 (nu_p + c nu_v) e^{c tau}`` keeps one sign) plus the modes, each
+        bounded by its amplitude ``|a_i sin + b_i cos| e^{-sigma_i tau} <=
+        amp_i e^{-sigma_i a}`` on ``[a, inf)``.  Where ``R`` keeps one sign and
+        ``min(|R(a)|, |R(b)|)`` exceeds the modes' bound plus ``margin`` (the
+        rounding noise of ``S``), ``S`` cannot vanish, however fast the modes
+        oscillate.  On a long move this proves most of ``[0, T]`` zero-free
+        without sampling the fastest mode there.
+        """
+        nu = np.asarray(nu, dtype=float)
+        a = np.asarray(a, dtype=float)
+        b = np.asarray(b, dtype=float)
+
+        def rigid(tau: np.ndarray) -> np.ndarray:
+            ect = np.exp(self.c * tau)
+            if self.include_position:
+                return self.b0 * (nu[0] * tau * _phi1(self.c * tau) + nu[1] * ect)
+            return self.b0 * nu[0] * ect
+
+        Ra, Rb = rigid(a), rigid(b)
+        low = np.minimum(np.abs(Ra), np.abs(Rb))
+        if self.w.size:
+            am = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+            amp = np.hypot(am, nu[self.r + 1 :: 2] * self.bm)
+            modal = np.exp(-np.outer(a, self.sig)) @ amp
+        else:
+            modal = np.zeros(a.shape)
+        return (np.sign(Ra) * np.sign(Rb) > 0) & (low > modal * (1.0 + 1e-12) + margin)
 
     def switching_derivative_bounds(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Upper bounds on ``|S'|`` and ``|S''|`` over ``[0, tau_max]``.

@@ -31,7 +31,7 @@ import numpy as np
 
 from .reachable_set import Shooting
 from .switch_newton import refine_switches, updated_structure
-from .switching import sample_grid
+from .switching import examined_points, sample_grid
 
 #: Newton runs (first structure + edits) before the fast path gives up.
 MAX_TRIES = 4
@@ -152,7 +152,13 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
         Sign of ``S`` before the first of them.
     """
     grid = sample_grid(sh.sys, T, density=GRID_DENSITY)
-    S, dS = sh.sys.switching(nuh / sh.s, grid, derivative=True)
+    h = grid[1] - grid[0]
+    nu = nuh / sh.s
+    # where the rigid part dominates the modes by a margin, S neither changes
+    # sign nor nearly touches zero: those blocks need no sampling
+    top = float(np.max(np.abs(sh.sys.switching(nu, np.array([0.0, T]))))) + float(sh.sys.switching_magnitude(nu, T)[0])
+    grid = examined_points(sh.sys, nu, grid, NEAR_ZERO * top)
+    S, dS = sh.sys.switching(nu, grid, derivative=True)
     sg = np.sign(S)
     nz = np.flatnonzero(sg)
     if nz.size == 0:
@@ -162,7 +168,6 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
     roots = grid[i] + (grid[j] - grid[i]) * S[i] / (S[i] - S[j])
     sign0 = float(sg[nz[0]])
     missing = (sh.sys.n - roots.size) // 2  # pairs short of n - 1 switches (rounded up)
-    h = grid[1] - grid[0]
     a = np.abs(S)
     top = float(np.max(a))
     # local minima of |S| without a sign change: a pair would make a dip there

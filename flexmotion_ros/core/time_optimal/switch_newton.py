@@ -191,3 +191,74 @@ def updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0
     a, b = new[::2], new[1::2]
     mid, half = 0.5 * (a + b), 0.05 * (b - a)
     return np.sort(np.concatenate([roots, mid - half, mid + half])), sign0
+
+
+def primal_newton(sh: Shooting, roots: np.ndarray, sign0: float, T: float, max_iter: int = 40):
+    """Newton on the final-state conditions alone, in the switch times and ``T`` (no co-state).
+
+    For a cluster of switches closer than the switching function can resolve
+    (its sign inside the cluster is below rounding, so the co-state equations
+    of :func:`refine_switches` cannot be met to ``POLISH_TOL``), while the
+    final state is still a smooth, well-scaled function of the switch times.
+    Unknowns ``(tau_1..tau_L, T)``, equations ``x(T) = 0`` (``n``): the
+    least-norm Newton step when ``L + 1 != n``, with backtracking.  The
+    result says nothing about optimality: the caller certifies it (by the gap
+    to a proved lower bound).
+
+    Returns ``(ok, roots, T, residual)``: ``ok`` when the scaled final state
+    is below ``POLISH_TOL`` with the switches inside ``(0, T)`` and ordered.
+    """
+    sys, s, um = sh.sys, sh.s, sh.u_max
+    L = roots.size
+    signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
+    jump = 2.0 * um * signs[:-1]
+
+    def final(tau, T):
+        G = sys.input_integral(np.append(tau, T))
+        eAx = sys.expm_x(T, sh.x0)
+        return (eAx + um * signs[-1] * G[-1] + jump @ G[:-1]) / s, eAx
+
+    def valid(tau, T):
+        return T > 0.0 and (L == 0 or (tau[0] > 0.0 and tau[-1] < T and np.all(np.diff(tau) > 0.0)))
+
+    tau, F, eAx = roots.copy(), *final(roots, T)
+    rn = float(np.max(np.abs(F)))
+    for _ in range(max_iter):
+        if rn <= 16.0 * np.finfo(float).eps:
+            break
+        J = np.empty((s.size, L + 1))
+        if L:
+            J[:, :L] = (sys.expm_B(tau) * jump[:, None]).T / s[:, None]
+        J[:, L] = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
+        step = np.linalg.lstsq(J, -F, rcond=None)[0]
+        t = 1.0
+        for _ in range(12):
+            tau_c, T_c = tau + t * step[:L], T + t * step[L]
+            if valid(tau_c, T_c):
+                F_c, eAx_c = final(tau_c, T_c)
+                rn_c = float(np.max(np.abs(F_c)))
+                if rn_c < rn:
+                    break
+            t *= 0.5
+        else:
+            break
+        tau, T, F, eAx, rn = tau_c, T_c, F_c, eAx_c, rn_c
+    return rn <= POLISH_TOL and valid(tau, T), tau, T, rn
+
+
+def split_candidates(roots: np.ndarray, sign0: float, T: float, widths=(1e-4, 1e-3, 1e-2)):
+    """Structures with one switch split into a tight triple (a notch), flattest-first order is the caller's.
+
+    Near a structure whose move time is a multiple of a mode's period (the
+    rigid optimum nearly leaves a mode at rest), the optimum grows a narrow
+    notch at a switch: three switches within ``~|detuning|`` of each other,
+    whose switching-function sign is below rounding.  Yields ``(roots, sign0)``
+    for each switch and each half-width (relative to ``T``).
+    """
+    for j in range(roots.size):
+        for w in widths:
+            d = w * T
+            trio = np.array([roots[j] - d, roots[j], roots[j] + d])
+            cand = np.sort(np.concatenate([np.delete(roots, j), trio]))
+            if cand[0] > 0.0 and cand[-1] < T and np.all(np.diff(cand) > 0.0):
+                yield cand, sign0

@@ -12,12 +12,13 @@ from scipy.linalg import expm
 from flexmotion_ros.core import (
     ModalModel,
     PiecewiseConstant,
+    chain,
     final_state,
     modal_amplitudes,
     simulate,
     simulate_samples,
 )
-from flexmotion_ros.core.simulation.exact import step_matrices
+from flexmotion_ros.core.simulation.exact import SAMPLE_BLOCK, step_matrices
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
 
 MODEL = ModalModel(b0=0.8, c=-0.3, omega=(1.3, 4.7, 11.0), zeta=(0.0, 0.05, 0.3), b=(1.2, -0.4, 2.5))
@@ -239,3 +240,22 @@ def test_modal_response_closed_forms_vs_expm(model, include_position):
     f = [nu @ expm(A * t) @ B for t in (0.8 - h, 0.8, 0.8 + h)]
     assert dS[0] == pytest.approx((f[2] - f[0]) / (2 * h), rel=1e-6, abs=1e-9)
     assert d2S[0] == pytest.approx((f[2] - 2 * f[1] + f[0]) / h**2, rel=1e-4, abs=1e-6)
+
+
+def test_blocked_sample_propagation_equals_the_step_by_step_recursion():
+    """``simulate_samples`` propagates long sequences in blocks (powers of one expm): same states to rounding."""
+    model = chain([0.5] * 4, [400.0] * 3, [0.4] * 3, force_on=0).model
+    rng = np.random.default_rng(7)
+    for K in (4 * SAMPLE_BLOCK - 1, 4 * SAMPLE_BLOCK, 1000 * SAMPLE_BLOCK // 32 + 17):
+        u = rng.uniform(-10.0, 10.0, K)
+        x0 = rng.normal(size=model.n_states)
+        X = simulate_samples(model, x0, u, 1e-3)
+        Phi, Gam = step_matrices(model.A(), model.B(), 1e-3)
+        x = x0.copy()
+        Y = [x]
+        for uk in u:
+            x = Phi @ x + Gam * uk
+            Y.append(x)
+        Y = np.array(Y)
+        assert X.shape == Y.shape
+        assert np.max(np.abs(X - Y) / np.max(np.abs(Y), axis=0)) <= 1e-12

@@ -1,0 +1,157 @@
+"""Singular inputs inside one coupled part: ``B_i^T lambda = 0`` identically (not normal).
+
+When an input reaches only a subspace ``R_i`` of the state (a mode only some
+inputs reach, several rigid bodies), the optimal co-state may be orthogonal
+to it: then ``S_i = nu^T e^{A tau} B_i`` vanishes identically, the input does
+not set the minimum time, and any input of it that finishes the move is
+optimal.  The planner then
+
+1. solves the other inputs ``C`` with ``nu`` restricted to the orthogonal
+   complement of ``R_J`` (``J``: the singular inputs) and only that component
+   of the final state (:class:`~.newton.Setting`);
+2. gives ``J`` the rest of the move inside ``R_J``, with the lowest peak
+   fraction that arrives exactly at ``T*`` (:func:`peak_stages`: the same
+   dual with ``nu`` restricted to ``R_J`` and the drive of ``C`` fixed);
+   singular inputs inside that stage are handled the same way, recursively.
+
+The time lower bound is unchanged (weak duality over every input: ``J``
+contributes ``int |S_i| = 0``); each peak stage is proved by its own dual.
+``R_J`` is the range of the controllability Gramian of ``J`` (scaled
+states), over a horizon of at least two periods of the slowest mode.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SolverError
+from ..time_optimal.switching import sample_grid
+from .dual import FINER, SMOOTHING, inner_smooth
+from .newton import Setting, drive_of
+from .response import MultiResponse
+from .structure import structure_newton
+
+#: An input whose switching function stays below this, relative to the largest, is singular.
+SINGULAR_RTOL = 1e-7
+#: Gramian eigenvalues below this (relative to the largest) span no reachable direction.
+GRAMIAN_RTOL = 1e-12
+MAX_DEPTH = 3
+#: A stage whose remaining (scaled) state is below this has nothing left to do (rounding of the earlier stages).
+ZERO_REST = 1e-11
+
+
+@dataclass
+class Stage:
+    """The inputs whose levels one stage sets: switch times (time-to-go) and first signs per input, ``nu``, ``rho``."""
+
+    inputs: list
+    roots: list
+    sign0: list
+    nuh: np.ndarray
+    rho: float
+
+
+def singular_inputs(resp: MultiResponse, nu: np.ndarray, T: float, active) -> list[int]:
+    """Active inputs whose ``|S_i|`` on ``[0, T]`` stays below :data:`SINGULAR_RTOL` of the largest."""
+    grid = sample_grid(resp, T)
+    peak = np.max(np.abs(resp.switching_all(nu, grid)[0]), axis=1)
+    idx = [i for i in range(resp.m) if active[i]]
+    top = max((peak[i] for i in idx), default=0.0)
+    if top <= 0.0:
+        return []
+    return [i for i in idx if peak[i] <= SINGULAR_RTOL * top]
+
+
+def reachable_basis(resp: MultiResponse, s: np.ndarray, inputs, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal bases (scaled state ``x / s``) of the subspace ``inputs`` reach and of its complement."""
+    horizon = T
+    if resp.wd.size:
+        horizon = max(T, 4.0 * math.pi / float(np.min(resp.wd)))
+    grid = sample_grid(resp, horizon, density=2.0)
+    E = resp.expm_B(grid)[:, :, list(inputs)] / s[None, :, None]  # (L, n, |J|)
+    rows = np.transpose(E, (0, 2, 1)).reshape(-1, resp.n)
+    lam, vecs = np.linalg.eigh(rows.T @ rows)
+    keep = lam > GRAMIAN_RTOL * float(np.max(lam))
+    return vecs[:, keep], vecs[:, ~keep]
+
+
+def complement_within(V: np.ndarray | None, R: np.ndarray, n: int) -> np.ndarray:
+    """Orthonormal basis of ``span(V)`` minus its components along ``span(R)`` (``V = None``: the whole space)."""
+    P = np.eye(n) if V is None else V
+    M = P - R @ (R.T @ P)
+    U, sv, _ = np.linalg.svd(M, full_matrices=False)
+    return U[:, sv > 1e-9 * max(float(sv[0]) if sv.size else 0.0, 1e-300)]
+
+
+def peak_stages(
+    resp: MultiResponse,
+    x0: np.ndarray,
+    u_max: np.ndarray,
+    s: np.ndarray,
+    T: float,
+    active: np.ndarray,
+    V: np.ndarray | None = None,
+    base: np.ndarray | None = None,
+    depth: int = 0,
+) -> list[Stage]:
+    """The lowest common peak fraction of the ``active`` inputs arriving exactly at ``T`` (s).
+
+    ``nu`` restricted to ``span(V)``; ``base``: the fixed drive (unscaled
+    state) of inputs solved before.  Singular inputs of this stage get the
+    rest of the move with their own lowest peak (a further stage).
+    """
+    base = np.zeros(resp.n) if base is None else base
+    w = -(resp.expm_x(T, x0) + base) / s
+    if float(np.max(np.abs(w if V is None else V.T @ w))) <= ZERO_REST:
+        # the earlier stages already bring this subspace to rest: these inputs stay at 0
+        idx = [int(i) for i in np.flatnonzero(active)]
+        return [Stage(idx, [np.empty(0)] * resp.m, [1.0] * resp.m, np.zeros(resp.n), 0.0)]
+    nuh = None
+    for eps in (*SMOOTHING, *(f[0] for f in FINER)):
+        nuh, mval, _, _ = inner_smooth(resp, x0, u_max, s, T, nuh, eps, active=active, V=V, w_vec=w)
+        if eps > SMOOTHING[-1]:
+            continue
+        J = singular_inputs(resp, nuh / s, T, active)
+        if J and len(J) < int(np.count_nonzero(active)):
+            if depth >= MAX_DEPTH:
+                break
+            Jmask = np.zeros(resp.m, dtype=bool)
+            Jmask[J] = True
+            C = active & ~Jmask
+            R, _ = reachable_basis(resp, s, J, T)
+            V2 = complement_within(V, R, resp.n)
+            nuh2 = V2 @ (V2.T @ nuh)
+            ext = structure_newton(resp, x0, u_max, s, nuh2, T, 1.0 / mval, False, setting=Setting(C, V2, base))
+            if ext is None:
+                continue
+            base2 = base + drive_of(resp, u_max, ext.roots, ext.sign0, T, ext.rho, C)
+            head = Stage(list(np.flatnonzero(C)), ext.roots, ext.sign0, ext.nuh, ext.rho)
+            return [head, *peak_stages(resp, x0, u_max, s, T, Jmask, R, base2, depth + 1)]
+        ext = structure_newton(resp, x0, u_max, s, nuh, T, 1.0 / mval, False, setting=Setting(active, V, base))
+        if ext is not None:
+            return [Stage(list(np.flatnonzero(active)), ext.roots, ext.sign0, ext.nuh, ext.rho)]
+    raise SolverError(
+        f"multi-input planner: no lowest-peak extremal at T = {T:.6g} s for inputs {[int(i) for i in np.flatnonzero(active)]}; "
+        "nothing is returned"
+    )
+
+
+def min_time_with_singular(resp, x0, u_max, s, nuh, T, J: list[int]):
+    """Minimum time when the inputs ``J`` are singular: the others set ``T*``, then ``J`` by :func:`peak_stages`.
+
+    Returns ``(extremal of the others, stages of J)`` or None if the Newton fails.
+    """
+    Jmask = np.zeros(resp.m, dtype=bool)
+    Jmask[J] = True
+    C = ~Jmask
+    R, Q = reachable_basis(resp, s, J, T)
+    nuh_c = Q @ (Q.T @ nuh)
+    ext = structure_newton(resp, x0, u_max, s, nuh_c, T, 1.0, True, setting=Setting(C, Q))
+    if ext is None:
+        return None
+    base = drive_of(resp, u_max, ext.roots, ext.sign0, ext.T, 1.0, C)
+    stages = peak_stages(resp, x0, u_max, s, ext.T, Jmask, R, base)
+    return ext, stages

@@ -1,0 +1,196 @@
+"""The solver's fallbacks when its co-state iterations end on a structure that misses the target.
+
+The optimum then usually differs from that structure by a narrow pair of
+switches (a notch) that the switching function cannot show: its sign there
+is below rounding.  The final state, however, is a smooth, well-scaled
+function of the switch times.
+
+Both solve the final-state conditions alone for a structure with a notch
+(:func:`~.switch_newton.primal_newton`), then hand each candidate to the one
+check every profile passes (the solver's ``assemble``, passed in: exact
+simulation and certificate; a miss raises :class:`SolverError`):
+
+* :func:`cluster_fallback`: a switch split into a triple, when the duration
+  is already within ``GAP_RTOL`` of the proved lower bound (a notch below
+  rounding: certified by the gap, or fully if the co-state can be had);
+* :func:`structure_fallback`: a bounded structure search
+  (:func:`notch_candidates`): a fixed, small set of structures, each a known
+  one (the solver's, the rigid body's) with one notch added at one of
+  :data:`LOCATIONS` places or one switch split into ``2 m + 1``; the work is
+  at most ``len(bases) x (LOCATIONS + switches) x len(WIDTHS)`` Newton runs of
+  :data:`NEWTON_STEPS` steps, whatever the model.  The first certified
+  candidate is returned (a certified extremal is the optimum), else the
+  shortest exact one with the proved bound it has.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import SolverError
+from ..results import BangBangProfile, CertificateStatus, SolverPath
+from ..tolerances import GAP_RTOL
+from .reachable_set import Shooting
+from .rigid_body import rigid_profile
+from .switch_newton import primal_newton, refine_switches, split_candidates
+
+#: Places (fractions of ``T``) tried for an added notch.
+LOCATIONS = 24
+#: Notch half-widths tried (relative to ``T``).
+WIDTHS = (1e-3, 1e-2)
+#: Newton steps per structure.
+NEWTON_STEPS = 15
+#: Two candidates with durations this close (relative) and the same number of
+#: switches, every switch as close, are one.
+SAME_RTOL = 1e-9
+
+
+def notch_candidates(sh: Shooting, bases: list[tuple[np.ndarray, float]], T: float):
+    """Structures reaching the target, from ``bases`` plus one notch: yields ``(T, roots, sign0)`` as found.
+
+    Parameters
+    ----------
+    sh : Shooting
+        The problem (state scale for durations near ``T``).
+    bases : list of (ndarray, float)
+        Known structures: switch times-to-go (s, increasing) and the sign of
+        ``S`` before the first.
+    T : float
+        Duration (s) the bases belong to.
+
+    Yields
+    ------
+    tuple of (float, ndarray, float)
+        Duration (s), switch times-to-go (s) and first sign of each distinct
+        structure whose final state the Newton run brought below
+        ``POLISH_TOL``.  A generator: the caller stops at the first one it
+        certifies (a certified extremal is the optimum, whatever the order).
+    """
+    found: list[tuple[float, np.ndarray, float]] = []
+    for roots, sign0 in bases:
+        for cand in _with_a_notch(roots, T, sh.s.size):
+            if not (cand[0] > 0.0 and cand[-1] < T and np.all(np.diff(cand) > 0.0)):
+                continue
+            ok, tau, T_c, _ = primal_newton(sh, cand, sign0, T, max_iter=NEWTON_STEPS)
+            if ok and not any(_same(T_c, tau, sign0, f) for f in found):
+                found.append((T_c, tau, sign0))
+                yield T_c, tau, sign0
+
+
+def _with_a_notch(roots: np.ndarray, T: float, n: int):
+    """``roots`` with notches added: enough switches for ``n`` final-state conditions (``L + 1 >= n``).
+
+    One pair short: a narrow pair at one of :data:`LOCATIONS` places, or one
+    switch split into three.  More pairs short (several modes tuned near
+    whole periods at once): one switch split into ``2 m + 1`` equally spaced.
+    """
+    m = max(1, -(-(n - 1 - roots.size) // 2))  # pairs needed, at least one
+    places = (np.arange(LOCATIONS) + 0.5) / LOCATIONS * T
+    for w in WIDTHS:
+        d = w * T
+        if m == 1:
+            for c in places:
+                yield np.sort(np.concatenate([roots, [c - d, c + d]]))
+        offsets = d * np.arange(-m, m + 1)
+        for j in range(roots.size):
+            yield np.sort(np.concatenate([np.delete(roots, j), roots[j] + offsets]))
+
+
+def _same(T_c: float, tau: np.ndarray, sign0: float, other: tuple[float, np.ndarray, float]) -> bool:
+    T_o, tau_o, sign_o = other
+    return (
+        sign0 == sign_o
+        and tau.size == tau_o.size
+        and abs(T_c - T_o) <= SAME_RTOL * T_c
+        and bool(np.all(np.abs(tau - tau_o) <= SAME_RTOL * T_c))
+    )
+
+
+def cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, assemble) -> BangBangProfile | None:
+    """A switch split into a notch below rounding, solved on the final state alone, certified by the gap.
+
+    When the co-state iterations end on a structure that misses the target
+    (the final-state error is real, measured by the exact simulation) while
+    ``T`` is already within :data:`GAP_RTOL` of the proved lower bound, the
+    optimum has a cluster of switches whose switching-function sign is below
+    rounding (e.g. a two-mass machine tuned near ``omega T = 4 pi``: a notch
+    of a few microseconds at the rigid switch).  Its switch times are found
+    from the final-state conditions alone (:func:`primal_newton`); the
+    profile is returned only if it passes the exact final-state check and is
+    within ``GAP_RTOL`` of the lower bound (the certificate then says so:
+    ``within_gap``).
+    """
+    if not T - T_low <= GAP_RTOL * T or roots.size == 0:
+        return None
+    for cand, sign0 in split_candidates(roots, float(signs[0]), T):
+        ok, tau, T_c, _ = primal_newton(sh, cand, sign0, T)
+        if not ok or not T_c - T_low <= GAP_RTOL * T_c:
+            continue
+        signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+        # a full Pontryagin certificate where the co-state can still be had
+        # (a notch wide enough for S to resolve): switch-time Newton from here
+        ok2, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
+        if ok2 and T2 - T_low <= GAP_RTOL * T2:
+            try:
+                profile = assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
+                if profile.certificate.status is CertificateStatus.OPTIMAL:
+                    profile.extra["solver_path"] = SolverPath.CLUSTER
+                    return profile
+            except SolverError:
+                pass
+        try:
+            profile = assemble(problem, system, nuh / sh.s, T_c, tau, signs_c, t0, sh.evaluations, T_low)
+        except SolverError:
+            continue
+        if profile.certificate.passed:
+            profile.extra["solver_path"] = SolverPath.CLUSTER
+            return profile
+    return None
+
+
+def structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, assemble) -> BangBangProfile | None:
+    """The bounded structure search (:func:`notch_candidates`) when the co-state iterations missed the target.
+
+    Candidates reaching the target are tried shortest first: the switch-time
+    Newton with the co-state from there, then the exact simulation and the
+    certificate.  The first certified one is returned.  If none certifies
+    (a notch whose switching-function sign is below rounding, and too far
+    from the rigid body's bound for the gap to prove it), the shortest one
+    that passes the exact final-state check is returned, not certified, its
+    certificate message stating the proved bound it has: ``T`` is within
+    ``(T - T_low) / T`` of the rigid body's minimum time.
+    """
+    rigid = rigid_profile(problem.model, problem.u_max, sh.x0, problem.include_position)
+    bases = [(roots, float(signs[0]))]
+    if rigid.switch_times.size or rigid.duration > 0.0:
+        bases.append((np.sort(rigid.duration - rigid.switch_times), float(np.sign(rigid.levels[-1]))))
+    best = None  # the shortest candidate that reaches the target, if none certifies
+    for T_c, tau, sign0 in notch_candidates(sh, bases, T):
+        signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+        ok, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
+        if ok:
+            try:
+                profile = assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
+            except SolverError:
+                profile = None
+            if profile is not None and profile.certificate.passed:
+                profile.extra["solver_path"] = SolverPath.SEARCH
+                return profile
+        if best is None or T_c < best.duration:
+            try:
+                best = assemble(problem, system, nuh / sh.s, T_c, tau, signs_c, t0, sh.evaluations, T_low)
+            except SolverError:
+                pass
+    if best is None:
+        return None
+    gap = (best.duration - T_low) / best.duration
+    cert = replace(
+        best.certificate,
+        message=f"not proved optimal: within {gap:.1e} (relative) of the proved lower bound {T_low!r} s "
+        f"(the rigid body's minimum time); sign test: {best.certificate.message}",
+    )
+    profile = replace(best, certificate=cert)
+    profile.extra["solver_path"] = SolverPath.SEARCH
+    return profile

@@ -1,0 +1,311 @@
+"""Closed-loop replanning from an estimated state, spliced ahead of the planning time (ROS-free).
+
+Every ``feedback.replan_period_s`` during a move the node has an estimate of
+the state (:mod:`flexmotion_ros.core.estimation`) at some sample ``k_e``.
+:func:`replan_point` carries it forward with the commands the timeline will
+send anyway, to the splice sample ``k_s = k_next + lead`` (the look-ahead of
+:func:`~.splice.lead_samples`, which covers the planning time, as for a
+preemption), and compares it with what the timeline predicts there.
+:func:`replan` then decides:
+
+* the estimate agrees with the prediction (deviation below ``min_deviation``
+  of the move, or not significant against the estimate's covariance): the
+  plan goes on unchanged -- with an exact model and no disturbance the
+  closed loop is the open-loop plan, sample for sample;
+* otherwise it plans from the predicted state to the same target (or a
+  stop), with the node's planner (certified and verified like every plan),
+  and returns the segment to splice at ``k_s``;
+* if planning fails, the current plan goes on and the outcome says why.
+
+The node wiring (a later wave) calls :func:`replan` from its planning
+thread and splices the segment as it splices a preemption.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..core.config import PlannerConfig
+from ..core.errors import FlexmotionError, GoalError
+from ..core.methods.table import plan_move
+from ..core.model.boundary import MoveProblem, state_to_rest
+from ..core.model.modal_model import ModalModel
+from ..core.results import PlanResult
+from ..core.simulation.exact import modal_amplitudes, step_matrices
+from .timeline import Segment, predicted_state
+from .trajectory import timeline_commands
+
+#: Replan only if the deviation exceeds this fraction of the move (state units, see :func:`relative_deviation`).
+MIN_DEVIATION = 1e-6
+#: ... and is significant against the estimate's covariance: its Mahalanobis distance squared exceeds
+#: this chi-square quantile (a deviation the noise explains is not corrected).
+GATE_PROBABILITY = 0.999
+
+
+class ReplanStatus(Enum):
+    """What :func:`replan` decided (values: the strings diagnostics show)."""
+
+    REPLANNED = "replanned"  # a new plan to splice at the sample given
+    ON_PLAN = "on_plan"  # the estimate agrees with the timeline: nothing changes
+    IDLE = "idle"  # no timeline: nothing to correct
+    FAILED = "failed"  # the planner refused: the current plan goes on
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReplanPoint:
+    """Where a replan would start, and how far the estimate is from the plan there.
+
+    Attributes
+    ----------
+    sample : int
+        The splice sample ``k_s`` (global index).
+    state : ndarray
+        The estimated state carried to ``k_s`` with the timeline's commands.
+    predicted : ndarray
+        What the timeline predicts at ``k_s``.
+    deviation : float
+        :func:`relative_deviation` of the two (fraction of the move).
+    significance : float or None
+        Mahalanobis distance squared of the deviation against the carried
+        covariance (None without a covariance).
+    lead : int
+        ``k_s - k_next`` (samples).
+    """
+
+    sample: int
+    state: np.ndarray
+    predicted: np.ndarray
+    deviation: float
+    significance: float | None
+    lead: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReplanOutcome:
+    """The decision and, if replanned, the segment to splice.
+
+    Attributes
+    ----------
+    status : ReplanStatus
+    point : ReplanPoint or None
+    segment : Segment or None
+        The new plan, ``start = point.sample`` (REPLANNED only).
+    result : PlanResult or None
+    reason : str
+        Why (for diagnostics).
+    plan_time_s : float
+        Planning wall time (s), 0 if not planned.
+    """
+
+    status: ReplanStatus
+    point: ReplanPoint | None = None
+    segment: Segment | None = None
+    result: PlanResult | None = None
+    reason: str = ""
+    plan_time_s: float = 0.0
+
+
+def relative_deviation(model: ModalModel, deviation: np.ndarray, move_size: float, horizon_s: float) -> float:
+    """How large a state deviation is, as a fraction of the move (dimensionless).
+
+    ``max(|dp|, |dv| horizon_s, amplitude of each mode's deviation) / move_size``:
+    what it would leave at the end if nothing corrected it -- a velocity error
+    drifts for ``horizon_s`` (the rest of the timeline), a mode's error
+    vibrates with its amplitude.
+    """
+    d = np.asarray(deviation, dtype=float)
+    amps = modal_amplitudes(model, d) if model.n_modes else np.zeros(0)
+    worst = max(abs(d[0]), abs(d[1]) * max(horizon_s, 0.0), *(amps.tolist() or [0.0]))
+    return float(worst / move_size)
+
+
+def timeline_move_size(timeline: Sequence[Segment]) -> float:
+    """The size of the timeline's move (m): how far its predicted position travels (1 if it does not)."""
+    if not timeline:
+        return 1.0
+    p = np.concatenate([seg.states[:, 0] for seg in timeline])
+    span = float(np.max(p) - np.min(p))
+    return span if span > 0.0 else 1.0
+
+
+def carry(model: ModalModel, dt: float, x, P, commands) -> tuple[np.ndarray, np.ndarray | None]:
+    """State (and covariance, if given) carried over ``commands`` (exact ZOH, no process noise)."""
+    Phi, Gam = step_matrices(model.A(), model.B(), dt)
+    x = np.array(x, dtype=float)
+    P = None if P is None else np.array(P, dtype=float)
+    for u in commands:
+        x = Phi @ x + Gam * u
+        if P is not None:
+            P = Phi @ P @ Phi.T
+    return x, P
+
+
+def replan_point(
+    timeline: Sequence[Segment],
+    k_next: int,
+    lead: int,
+    estimate,
+    estimate_sample: int,
+    *,
+    model: ModalModel,
+    dt: float,
+    covariance=None,
+    move_size: float | None = None,
+) -> ReplanPoint | None:
+    """The splice sample, the estimated state carried there, and its deviation from the plan.
+
+    Parameters
+    ----------
+    timeline : sequence of Segment
+        The stream's queued segments (empty: idle).
+    k_next : int
+        The sample the stream sends next.
+    lead : int
+        Look-ahead (samples) covering the planning time (:func:`~.splice.lead_samples`).
+    estimate : array_like
+        The estimated state before command ``estimate_sample`` (``[p, v, q_1, q_1', ...]``).
+    estimate_sample : int
+        Its global sample index (``<= k_next + lead``).
+    model : ModalModel
+    dt : float
+        Sample period (s).
+    covariance : array_like, optional
+        The estimate's covariance (enables the significance test).
+    move_size : float, optional
+        Default: :func:`timeline_move_size`.
+
+    Returns
+    -------
+    ReplanPoint or None
+        None when idle.
+
+    Raises
+    ------
+    GoalError
+        The estimate is later than the splice, or has the wrong size.
+    """
+    if not timeline:
+        return None
+    k_s = k_next + lead
+    if estimate_sample > k_s:
+        raise GoalError("estimate_sample", f"the estimate (sample {estimate_sample}) is later than the splice ({k_s})")
+    x = np.asarray(estimate, dtype=float).ravel()
+    if x.size != model.n_states:
+        raise GoalError("estimate", f"must have {model.n_states} entries, got {x.size}")
+    commands = timeline_commands(timeline, estimate_sample, k_s)
+    xs, Ps = carry(model, dt, x, covariance, commands)
+    pred = predicted_state(timeline, k_s)
+    d = xs - pred
+    horizon = max(timeline[-1].end - k_s, 1) * dt
+    dev = relative_deviation(model, d, move_size or timeline_move_size(timeline), horizon)
+    sig = None
+    if Ps is not None:
+        sig = float(d @ np.linalg.lstsq(Ps, d, rcond=1e-12)[0])
+    return ReplanPoint(sample=k_s, state=xs, predicted=pred, deviation=dev, significance=sig, lead=lead)
+
+
+def replan(
+    timeline: Sequence[Segment],
+    k_next: int,
+    lead: int,
+    estimate,
+    estimate_sample: int,
+    *,
+    config: PlannerConfig,
+    target: float | None,
+    covariance=None,
+    move_size: float | None = None,
+    min_deviation: float = MIN_DEVIATION,
+    gate_probability: float = GATE_PROBABILITY,
+    planner: Callable[[PlannerConfig, MoveProblem, float], PlanResult] = plan_move,
+) -> ReplanOutcome:
+    """Decide whether to replan from the estimate, and plan if so (module docstring).
+
+    Parameters
+    ----------
+    timeline, k_next, lead, estimate, estimate_sample, covariance, move_size
+        As for :func:`replan_point`.
+    config : PlannerConfig
+        The node's configuration (model, bound, rate, method).
+    target : float or None
+        The move's target (m); None: a stop (final position free).
+    min_deviation : float
+        Replan only above this deviation (fraction of the move).
+    gate_probability : float
+        With a covariance, replan only if the deviation's Mahalanobis
+        distance squared exceeds this chi-square quantile (``n`` degrees of freedom).
+    planner : callable
+        ``planner(config, problem, rate_hz) -> PlanResult`` (default :func:`plan_move`).
+    """
+    model = config.model
+    dt = 1.0 / config.rate_hz
+    point = replan_point(
+        timeline,
+        k_next,
+        lead,
+        estimate,
+        estimate_sample,
+        model=model,
+        dt=dt,
+        covariance=covariance,
+        move_size=move_size,
+    )
+    if point is None:
+        return ReplanOutcome(status=ReplanStatus.IDLE, reason="no move to correct")
+    if point.deviation <= min_deviation:
+        return ReplanOutcome(
+            status=ReplanStatus.ON_PLAN, point=point, reason=f"deviation {point.deviation:.2e} of the move"
+        )
+    if point.significance is not None:
+        gate = float(chi2.ppf(gate_probability, model.n_states))
+        if point.significance <= gate:
+            return ReplanOutcome(
+                status=ReplanStatus.ON_PLAN,
+                point=point,
+                reason=f"deviation {point.deviation:.2e} of the move is within the estimate's noise "
+                f"(Mahalanobis^2 {point.significance:.3g} <= {gate:.3g})",
+            )
+    t0 = time.perf_counter()
+    try:
+        result = planner(config, state_to_rest(model, config.u_max, point.state, target), config.rate_hz)
+    except FlexmotionError as exc:
+        took = time.perf_counter() - t0
+        return ReplanOutcome(
+            status=ReplanStatus.FAILED, point=point, reason=f"replan refused, the plan goes on: {exc}", plan_time_s=took
+        )
+    took = time.perf_counter() - t0
+    s = result.sampled
+    if s is None or not math.isfinite(float(s.final_state_error_relative)):
+        return ReplanOutcome(
+            status=ReplanStatus.FAILED, point=point, reason="the planner gave no sampled plan", plan_time_s=took
+        )
+    seg = Segment(np.asarray(s.commands, float), np.asarray(s.states, float), start=point.sample, info=result)
+    return ReplanOutcome(
+        status=ReplanStatus.REPLANNED,
+        point=point,
+        segment=seg,
+        result=result,
+        reason=f"deviation {point.deviation:.2e} of the move",
+        plan_time_s=took,
+    )
+
+
+__all__ = [
+    "GATE_PROBABILITY",
+    "MIN_DEVIATION",
+    "ReplanOutcome",
+    "ReplanPoint",
+    "ReplanStatus",
+    "carry",
+    "relative_deviation",
+    "replan",
+    "replan_point",
+    "timeline_move_size",
+]

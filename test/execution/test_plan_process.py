@@ -1,0 +1,70 @@
+"""Planning in a forked child (issue 14/16): the same plans, the same errors, a dead child reported."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# Run in a fresh interpreter: a fork is safe only from a process with one thread (pytest may have more).
+SCRIPT = r"""
+import json, os, signal, time
+import numpy as np
+from flexmotion_ros.core.config import PlannerConfig
+from flexmotion_ros.core.errors import GoalError
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.model.boundary import rest_to_rest, state_to_rest
+from flexmotion_ros.core.model.modal_model import ModalModel
+from flexmotion_ros.execution.plan_process import PlanningProcesses, PlanProcessError
+
+cfg = PlannerConfig(model=ModalModel(b0=1.0, omega=(5.0, 13.0), zeta=(0.01, 0.02), b=(1.0, -0.7)), u_max=10.0,
+                    rate_hz=200.0)
+out = {}
+children = PlanningProcesses.fork()
+try:
+    goal = rest_to_rest(cfg.model, cfg.u_max, 1.0)
+    here, there = plan_move(cfg, goal, 200.0), children.goal(cfg, goal, 200.0)
+    out["same_commands"] = bool(np.array_equal(here.sampled.commands, there.sampled.commands))
+    out["same_states"] = bool(np.array_equal(here.sampled.states, there.sampled.states))
+    out["same_duration"] = here.continuous.duration == there.continuous.duration
+    x0 = there.sampled.states[60]
+    stop = state_to_rest(cfg.model, cfg.u_max, x0, None)
+    out["same_stop"] = bool(np.array_equal(plan_move(cfg, stop, 200.0).sampled.commands,
+                                           children.stop(cfg, stop, 200.0).sampled.commands))
+    try:
+        children.goal(cfg.with_changes(max_move_duration_s=0.1), goal, 200.0)
+    except GoalError as exc:
+        out["error"] = [type(exc).__name__, exc.parameter, "max_move_duration_s" in exc.reason]
+    os.kill(children.stop.pid, signal.SIGKILL)
+    time.sleep(0.2)
+    try:
+        children.stop(cfg, stop, 200.0)
+    except PlanProcessError as exc:
+        out["dead"] = [children.stop.dead, "died" in str(exc) or "gone" in str(exc)]
+    out["goal_still_plans"] = children.goal(cfg, goal, 200.0).sampled.commands.size == here.sampled.commands.size
+finally:
+    children.close()
+for c in (children.goal, children.stop):
+    try:
+        os.waitpid(c.pid, os.WNOHANG)
+        out.setdefault("reaped", []).append(False)
+    except ChildProcessError:
+        out.setdefault("reaped", []).append(True)
+print(json.dumps(out))
+"""
+
+
+def test_a_plan_in_the_child_is_the_plan_here_errors_come_back_as_themselves_and_a_dead_child_is_reported():
+    proc = subprocess.run(
+        [sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["same_commands"] and out["same_states"] and out["same_duration"] and out["same_stop"], out
+    assert out["error"] == ["GoalError", "goal", True]  # our own error, rebuilt with its parameter and reason
+    assert out["dead"] == [True, True]  # a killed child: reported, never a hang
+    assert out["goal_still_plans"]  # the other child is independent
+    assert out["reaped"] == [True, True]  # no zombie left
