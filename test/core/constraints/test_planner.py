@@ -484,3 +484,14 @@ def test_nothing_found_and_nothing_proved_is_not_called_impossible(monkeypatch):
     with pytest.raises(SolverError, match="not proved impossible") as info:
         plan_limited_zoh(problem, 10.0, Limits(velocity_max=0.1), unlimited)
     assert not isinstance(info.value, GoalError)
+
+
+def test_a_spent_planning_budget_claims_nothing(monkeypatch):
+    """Issue 18: past ``TIME_BUDGET_S`` the search stops with a SolverError that names the budget and
+    says the limits are not proved impossible (never "relax them"), through ``plan_move`` too."""
+    monkeypatch.setattr(limits_mod, "TIME_BUDGET_S", 0.0)
+    problem = rest_to_rest(WB, 1.0, 1.0)  # 0.1 m/s binds: the search must run
+    config = PlannerConfig(model=WB, u_max=1.0, method="limited", options={"limits.velocity_max": 0.1})
+    with pytest.raises(SolverError, match="planning budget.*not proved impossible") as info:
+        plan_move(config, problem, 10.0)
+    assert "\n" not in str(info.value)

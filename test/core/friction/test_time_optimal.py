@@ -29,6 +29,7 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
+from flexmotion_ros.core.friction import zoh as zoh_mod
 from flexmotion_ros.core.friction.certificate import CLAIM, FrictionStatus
 from flexmotion_ros.core.friction.contact import (
     FrictionSystem,
@@ -348,6 +349,16 @@ def test_sampled_friction_move_is_exact_and_bounded(wb_friction):
     assert sp.samples >= sp.lower_bound_samples
     assert sp.samples <= math.ceil(prof.duration * 100.0) + 5
     assert np.allclose(sp.states[-1], x[0], atol=1e-12)
+
+
+def test_a_spent_sampled_budget_is_a_solver_failure(monkeypatch, wb_friction):
+    """Issue 18: past the sampled search's ``TIME_BUDGET_S`` the planner stops with one line naming the
+    budget (it hung for minutes before); nothing is returned."""
+    monkeypatch.setattr(zoh_mod, "TIME_BUDGET_S", -1.0)
+    prof = wb_friction[0.3]
+    with pytest.raises(SolverError, match="planning budget") as info:
+        plan_time_optimal_friction_zoh(prof.problem, 0.3, 100.0, prof)
+    assert "\n" not in str(info.value)
 
 
 def test_method_through_plan_move_and_parameter_errors():
