@@ -459,6 +459,26 @@ def test_issue18_false_infeasibility_verdict_is_gone():
         assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits)
 
 
+def test_long_damped_move_arrives_exactly():
+    """Fuzz case 151 (seed 18): a 93 s move of a damped rigid body (c = -0.23) with two modes 5 % apart.
+    The arrival correction's least squares rounded relative to one state column 1e12 times the others:
+    1.3e-9 final-state error, refused ("misses the target"; before that, no plan within the budget).
+    Now each arrival equation is normalised: a plan, exact, within the limit."""
+    m = ModalModel(
+        b0=0.8556491346854,
+        c=-0.2338665978886646,
+        omega=(0.6083236199109882, 0.63701141698677, 13.479365278338069, 35.124076020761365),
+        zeta=(0.05063420113830525, 0.1048320215454662, 0.037552156564034274, 0.29435509474432764),
+        b=(-0.38833098404556043, 1.7216795109368483, 1.7111336368227488, 1.6824866806542151),
+    )
+    u_max, v_max, goal = 4.243276719611286, 13.029147033019365, -1121.4881575117977
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    config = PlannerConfig(model=m, u_max=u_max, method="limited", options={"limits.velocity_max": v_max})
+    result = plan_move(config, problem, 100.0)
+    check_every_limit(problem, result, Limits(velocity_max=v_max))
+    assert result.sampled.final_state_error_relative < 1e-12
+
+
 def test_limits_broken_at_once_are_proved_impossible():
     """A mode swinging too hard to be held within its deflection limit whatever the command: the
     verdict names the proof; the independent LP agrees at several horizons."""
