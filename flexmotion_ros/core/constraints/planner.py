@@ -605,7 +605,8 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
     if accepted is None:
         raise SolverError(
             f"limited planner: no sequence passed the exact limit checks in {rounds} rounds "
-            f"({len(lp.cuts)} deflection cuts added, counts up to {reject} rejected); relax the limits"
+            f"({len(lp.cuts)} deflection cuts added, counts up to {reject} rejected); the limits are not proved "
+            "impossible; nothing is returned"
         )
     K, u, peaks = accepted
     minimal = K == proved

@@ -459,6 +459,15 @@ def test_issue18_false_infeasibility_verdict_is_gone():
         assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits)
 
 
+def test_no_sequence_passing_the_checks_claims_nothing(monkeypatch):
+    """Every count's sequence fails the exact checks: a SolverError that says the limits are not proved
+    impossible (it said "relax the limits")."""
+    monkeypatch.setattr(limits_mod, "_accept", lambda level, K: None)
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    with pytest.raises(SolverError, match="exact limit checks.*not proved impossible"):
+        plan_limited_zoh(problem, 10.0, Limits(velocity_max=0.35))
+
+
 def test_long_damped_move_arrives_exactly():
     """Fuzz case 151 (seed 18): a 93 s move of a damped rigid body (c = -0.23) with two modes 5 % apart.
     The arrival correction's least squares rounded relative to one state column 1e12 times the others:
