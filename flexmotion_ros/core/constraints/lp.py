@@ -262,6 +262,7 @@ class LimitLP:
 
         # arrival: sum_m g_{K-1-m} u_m = w (every state, scaled by its size)
         gK = kd.g[K - 1 :: -1] * self.um / kd.sc  # row m: g_{K-1-m}, normalised command
+        row_scale = np.ones(n)
         for i in range(n):
             cols = [uvar[F]]
             vals = [gK[F, i]]
@@ -275,7 +276,12 @@ class LimitLP:
             if tv:
                 cols.append(np.array([0]))
                 vals.append(np.array([tv]))
-            E.add(np.concatenate(cols), np.concatenate(vals), kd.w[i] / kd.sc[i])
+            vals = np.concatenate(vals)
+            # each arrival row in its own units (HiGHS's tolerances are absolute: a damped rigid body's long
+            # move left one row 1e12 times the others); nu is returned in kd.sc units (scaled back below)
+            big = float(np.max(np.abs(vals))) if vals.size else 0.0
+            row_scale[i] = 1.0 / big if big > 0.0 else 1.0
+            E.add(np.concatenate(cols), vals * row_scale[i], kd.w[i] / kd.sc[i] * row_scale[i])
         n_arrival = n
         i = np.arange(kn.size - 1)
         E.add_many(np.column_stack([i, i + 1]), np.tile([1.0, -1.0], (i.size, 1)), np.zeros(i.size))
@@ -462,7 +468,7 @@ class LimitLP:
         meta = U.meta_array()
         keep_rows = meta[:, 0] >= 0
         lam = -np.asarray(res.ineqlin.marginals, float)[keep_rows] if U.n else np.zeros(0)
-        nu = np.asarray(res.eqlin.marginals, float)[:n_arrival]
+        nu = np.asarray(res.eqlin.marginals, float)[:n_arrival] * row_scale
         return LPSolution(
             K, self.um * v, t, nu, meta[keep_rows], U.s_array()[keep_rows], np.maximum(lam, 0.0), seg, levels
         )
