@@ -57,6 +57,7 @@ from flexmotion_ros.core.methods.table import plan_move  # noqa: E402
 from flexmotion_ros.core.simulation.exact import simulate, simulate_samples  # noqa: E402
 
 RATE_HZ = 100.0
+CHECK_LP_TIME_S = 20.0  # per HiGHS method in the independent LP; past it the check says "undecided"
 METHODS = ("time_optimal_friction", "limited")
 
 
@@ -116,7 +117,9 @@ def state_space_lp(problem: MoveProblem, K: int, dt: float, v_max: float, slack:
     """Is there a ``K``-sample sequence to rest at the target with ``|v_k| <= v_max (1 + slack)``?
 
     A formulation of its own: every state a variable, step matrices from ``scipy.linalg.expm`` of the
-    augmented matrix, sparse rows, HiGHS.  None if HiGHS decides neither way with either method.
+    augmented matrix, sparse rows, HiGHS.  None if HiGHS decides neither way with either method within
+    ``CHECK_LP_TIME_S`` each (case 869's 313-sample LP stalled HiGHS for minutes: counted as a planner
+    hang, though the planner took 0.3 s).
     """
     model = problem.model
     A, B = model.A(), model.B()
@@ -150,7 +153,14 @@ def state_space_lp(problem: MoveProblem, K: int, dt: float, v_max: float, slack:
     lo[vel], hi[vel] = -v_max * (1.0 + slack), v_max * (1.0 + slack)
     lo[K + n * (K - 1) :] = hi[K + n * (K - 1) :] = xf
     for method in ("highs-ipm", "highs-ds"):
-        res = linprog(np.zeros(nv), A_eq=Aeq, b_eq=beq, bounds=np.column_stack([lo, hi]), method=method)
+        res = linprog(
+            np.zeros(nv),
+            A_eq=Aeq,
+            b_eq=beq,
+            bounds=np.column_stack([lo, hi]),
+            method=method,
+            options={"time_limit": CHECK_LP_TIME_S},
+        )
         if res.status in (0, 2):
             return res.status == 0
     return None
