@@ -523,7 +523,7 @@ class LimitLP:
         # each arrival equation in its own units: lstsq's rounding is relative to the largest column, and
         # a long move of a damped rigid body left one column 1e12 times the others (fuzz case 151: a
         # 1.3e-9 final-state error, refused); the least-norm change is the same
-        norms = np.linalg.norm(G[movable], axis=0)
-        d = 1.0 / np.where(norms > 0.0, norms, 1.0)
+        big = np.max(np.abs(G[movable]), axis=0, initial=0.0)  # not the 2-norm: it can overflow
+        d = 1.0 / np.where(big > 0.0, big, 1.0)
         out = correct_arrival(G * d, w * d, u, movable)
         return np.clip(out, -self.um, self.um)
