@@ -43,6 +43,7 @@ from flexmotion_ros.core import (
 from flexmotion_ros.core.errors import SolverError
 from flexmotion_ros.core.friction.time_optimal import plan_time_optimal_friction
 from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
+from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.sampled.fixed_time import plan_fixed_time_zoh
 from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 
@@ -102,6 +103,15 @@ def main() -> None:
                 f"{prof.certified!s:>5s} {sp.samples:8d} {(sp.samples - K0) * dt:9.3f} "
                 f"{np.max(np.abs(sp.commands)) / um:9.4g} {t_c:8.1f} {t_z:8.1f}"
             )
+    # the shipped example through the method table, as the node and the CLI plan it
+    cfg = load_config(os.path.join(root, "config", "friction_example.yaml"))
+    ex = rest_to_rest(cfg.model, cfg.u_max, 1.0)
+    res, t_pm = timed(plan_move, cfg, ex, rate)
+    status = res.info.get("friction_status", "certified" if res.continuous.certified else "not certified")
+    print(
+        f"\nconfig/friction_example.yaml, goal 1.0, plan_move at {rate:g} Hz: {t_pm:.1f} ms "
+        f"(continuous {res.continuous.duration:.6f} s, {status}; {res.sampled.samples} samples)"
+    )
     print()
     print("+T: added time over the time-optimal move; +samp: added samples x dt over the time-optimal ZOH;")
     print("peak |u|: friction rows in N, fixed_time rows as a fraction of u_max (the least peak);")

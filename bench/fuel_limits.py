@@ -55,6 +55,7 @@ from flexmotion_ros.core import (
 )
 from flexmotion_ros.core.constraints.limits import Limits
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.errors import FlexmotionError
 from flexmotion_ros.core.fuel.curve import fuel_time_curve
 from flexmotion_ros.core.fuel.lp import plan_min_fuel_zoh
 from flexmotion_ros.core.fuel.min_fuel import plan_min_fuel
@@ -130,7 +131,11 @@ def main() -> None:
         ("all three", both),
     ]
     for name, lim in cases:
-        r, t = timed(plan_limited_zoh, problem, rate, lim, z)
+        try:
+            r, t = timed(plan_limited_zoh, problem, rate, lim, z)
+        except FlexmotionError as exc:  # a refusal or an honest failure is a row too
+            print(row([name, "-", "-", "-", "-", "-", "-", f"{type(exc).__name__}: {exc}"], w), flush=True)
+            continue
         print(
             row(
                 [

@@ -234,7 +234,7 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
         bound, _ = dual_bound(lp, cand)
         if bound > best_bound:
             best, best_bound = cand, bound
-        neg = lam < -1e-12 * max(float(np.max(np.abs(lam))), 1e-300)
+        neg = lam < -1e-12 * max(float(np.max(np.abs(lam), initial=0.0)), 1e-300)
         if not neg.any():
             break
         # a multiplier must not be negative: pin those at zero and solve again (as in NNLS)

@@ -18,11 +18,8 @@ Commands ``v_m = u_m / u_max``; every limit row is written ``a^T v + d <= t``
   sharing a level) may not be, and then says so (None).  Its dual gives the
   weak-duality bound of :mod:`.limit_dual`.
 * ``feasible``: the limits scaled by a fixed ``t``, no objective: the
-  last-resort infeasibility proof of :mod:`.limits` (HiGHS's verdict; an
-  interior-point "infeasible" is confirmed by the simplex method within
-  ``CONFIRM_TIME_S``: on large, barely infeasible LPs the simplex method
-  can stall for minutes, and then the interior-point verdict stands alone,
-  as the proof records).
+  last-resort infeasibility proof of :mod:`.planner` (HiGHS's verdict, used
+  as a proof only when the independent formulation of :mod:`.certify` agrees).
 * ``smooth`` (the accepted solve): ``t`` fixed at ``1 - MARGIN``,
   ``|v_m| <= 1``, minimum total variation ``sum |u_k - u_{k-1}|`` (where a
   deflection limit is set or no slew limit: under a slew limit alone any
@@ -54,6 +51,8 @@ one).
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,10 +72,12 @@ MARGIN = 1e-7
 MAX_ROW_ROUNDS = 10
 #: Above this many free samples (with state chains) the interior-point method beats the simplex.
 IPM_SAMPLES = 300
-#: Time the simplex method gets to confirm an interior-point "infeasible" verdict (s).
-CONFIRM_TIME_S = 2.0
 #: Row kinds in :class:`LPSolution`.
 STATE, CUT, SLEW = 0, 1, 2
+
+
+class LPUndecided(SolverError):
+    """HiGHS decided neither "optimal" nor "infeasible" with any method: the LP says nothing about ``K``."""
 
 
 @dataclass
@@ -149,6 +150,7 @@ class LimitLP:
         self.solves = 0
         self.infeasible_verdicts = 0  # LPs HiGHS found infeasible
         self.infeasible_method = ""  # the HiGHS method that gave the last such verdict
+        self.deadline = math.inf  # time.perf_counter() past which an LP stops (HiGHS time limit)
         self._kd: dict[int, KData] = {}
         self._rows: dict[int, list[set]] = {}  # generated rows inside runs, per K and block
         self._at_cache: dict = {}
@@ -195,9 +197,10 @@ class LimitLP:
 
         Returns None when the LP has no solution (``smooth``: the limits
         cannot be met with this parametrisation; ``scaled``: the runs and
-        free samples cannot reach the target), or when the rows inside runs,
-        added until the solution meets every limit at every sample, did not
-        settle within ``MAX_ROW_ROUNDS``.
+        free samples cannot reach the target).  Raises :class:`LPUndecided`
+        when HiGHS gives neither verdict with any method, or when the rows
+        inside runs, added until the solution meets every limit at every
+        sample, did not settle within ``MAX_ROW_ROUNDS`` (never read as "infeasible").
         """
         seg = seg if seg is not None else Segments.all_free(K)
         rows = self._rows.setdefault(K, [set() for _ in self.blocks])
@@ -206,9 +209,9 @@ class LimitLP:
             sol = self._solve_once(K, seg, mode, rows, t_fix)
             if sol is None or not self._add_violated_rows(sol, rows):
                 return sol
-        # rows inside runs still violated: not a restriction of the full problem
-        # (its t is no upper bound); the callers fall back to every sample free
-        return None
+        # rows inside runs still violated: not a restriction of the full problem (its t is no upper
+        # bound), and no verdict either: the callers fall back to every sample free, or step past K
+        raise LPUndecided(f"limited planner: limit rows at {K} samples did not settle in {MAX_ROW_ROUNDS} rounds")
 
     def _solve_once(self, K, seg, mode, extra, t_fix=None) -> LPSolution | None:
         self.solves += 1
@@ -259,6 +262,7 @@ class LimitLP:
 
         # arrival: sum_m g_{K-1-m} u_m = w (every state, scaled by its size)
         gK = kd.g[K - 1 :: -1] * self.um / kd.sc  # row m: g_{K-1-m}, normalised command
+        row_scale = np.ones(n)
         for i in range(n):
             cols = [uvar[F]]
             vals = [gK[F, i]]
@@ -272,7 +276,12 @@ class LimitLP:
             if tv:
                 cols.append(np.array([0]))
                 vals.append(np.array([tv]))
-            E.add(np.concatenate(cols), np.concatenate(vals), kd.w[i] / kd.sc[i])
+            vals = np.concatenate(vals)
+            # each arrival row in its own units (HiGHS's tolerances are absolute: a damped rigid body's long
+            # move left one row 1e12 times the others); nu is returned in kd.sc units (scaled back below)
+            big = float(np.max(np.abs(vals))) if vals.size else 0.0
+            row_scale[i] = 1.0 / big if big > 0.0 else 1.0
+            E.add(np.concatenate(cols), vals * row_scale[i], kd.w[i] / kd.sc[i] * row_scale[i])
         n_arrival = n
         i = np.arange(kn.size - 1)
         E.add_many(np.column_stack([i, i + 1]), np.tile([1.0, -1.0], (i.size, 1)), np.zeros(i.size))
@@ -420,25 +429,34 @@ class LimitLP:
         A_eq, b_eq = E.system(nv)
         A_ub, b_ub = U.system(nv)
         method = "highs-ipm" if F.size > IPM_SAMPLES and self.blocks else "highs"
-        kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=HIGHS_OPTIONS)
+        opts = dict(HIGHS_OPTIONS)
+        if math.isfinite(self.deadline):  # the planner's budget bounds every single LP too
+            opts["time_limit"] = max(0.5, self.deadline - time.perf_counter())
+        kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=opts)
         res = linprog(cost, method=method, **kw)
-        if res.status not in (0, 2) and method != "highs":  # the interior-point method gave up: simplex
-            method = "highs"
-            res = linprog(cost, method=method, **kw)
-        verdict = "dual simplex" if method == "highs" else "interior point"
-        if res.status == 2 and method != "highs":
-            # "infeasible" decides proofs: confirmed by the simplex method, within a time limit (on a
-            # barely infeasible LP with a thousand samples or more it can stall for minutes)
-            opts = {**HIGHS_OPTIONS, "time_limit": CONFIRM_TIME_S}
-            check = linprog(cost, method="highs", **{**kw, "options": opts})
-            if check.status != 1:  # 1: time limit reached: the interior-point verdict stands alone
-                res, verdict = check, "interior point, confirmed by dual simplex"
+        tried = [f"{method}: {res.message}"]
+        if res.status not in (0, 2):
+            # neither optimal nor infeasible (e.g. "HiGHS Status 0: Not Set", an iteration or time limit):
+            # ask the other methods, then the dual simplex without presolve (it sees the rows unscaled)
+            for alt, presolve in (
+                ("highs-ds" if method != "highs-ds" else "highs-ipm", True),
+                ("highs-ipm" if method == "highs" else "highs-ds", True),
+                ("highs-ds", False),
+            ):
+                res = linprog(cost, method=alt, **{**kw, "options": {**opts, "presolve": presolve}})
+                tried.append(f"{alt}{'' if presolve else ' (no presolve)'}: {res.message}")
+                if res.status in (0, 2):
+                    method = alt
+                    break
+        verdict = "interior point" if method == "highs-ipm" else "dual simplex"
         if res.status == 2:
+            # "infeasible" is a verdict of one method on this formulation; where it decides a proof,
+            # the planner has it confirmed by an independent formulation (:mod:`.certify`)
             self.infeasible_verdicts += 1
             self.infeasible_method = verdict
             return None
         if res.status != 0:
-            raise SolverError(f"limited planner: linear program at {K} samples failed ({res.message})")
+            raise LPUndecided(f"limited planner: linear program at {K} samples undecided ({'; '.join(tried)})")
         x = res.x
         t = float(x[0])
         v = np.empty(K)
@@ -450,7 +468,7 @@ class LimitLP:
         meta = U.meta_array()
         keep_rows = meta[:, 0] >= 0
         lam = -np.asarray(res.ineqlin.marginals, float)[keep_rows] if U.n else np.zeros(0)
-        nu = np.asarray(res.eqlin.marginals, float)[:n_arrival]
+        nu = np.asarray(res.eqlin.marginals, float)[:n_arrival] * row_scale
         return LPSolution(
             K, self.um * v, t, nu, meta[keep_rows], U.s_array()[keep_rows], np.maximum(lam, 0.0), seg, levels
         )
@@ -501,5 +519,11 @@ class LimitLP:
         movable = np.abs(u) < self.um * (1.0 - 1e-9)
         if self.slew is not None:
             movable[[0, -1]] = False  # keep the end steps inside the slew limit
-        out = correct_arrival(G / kd.sc, kd.w / kd.sc, u, movable)
+        G, w = G / kd.sc, kd.w / kd.sc
+        # each arrival equation in its own units: lstsq's rounding is relative to the largest column, and
+        # a long move of a damped rigid body left one column 1e12 times the others (fuzz case 151: a
+        # 1.3e-9 final-state error, refused); the least-norm change is the same
+        big = np.max(np.abs(G[movable]), axis=0, initial=0.0)  # not the 2-norm: it can overflow
+        d = 1.0 / np.where(big > 0.0, big, 1.0)
+        out = correct_arrival(G * d, w * d, u, movable)
         return np.clip(out, -self.um, self.um)

@@ -54,13 +54,21 @@ from ..model.modal_model import check_positive
 from ..results import ProofKind, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.zoh import plan_time_optimal_zoh
+from .certify import feasible as independent_feasible
+from .certify import prefix_feasible
 from .dual import dual_bound, lift, proves_infeasible
 from .limits import Limits, check_limits
-from .lp import LimitLP, LPSolution, Segments
+from .lp import LimitLP, LPSolution, LPUndecided, Segments
 from .structure import map_runs, solution_runs
 
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64
+#: Planning-time budget (s): past it the planner stops and says so (SolverError), it claims nothing.
+TIME_BUDGET_S = 120.0
+#: ... or this many samples more, whichever is larger (short moves).
+CAP_EXTRA = 1000
+#: Beyond this many times the unlimited count, the search first tries to prove the limits impossible.
+SOFT_FACTOR = 8
 MAX_CUT_ROUNDS = 12
 #: Levels: rates a factor COARSE_FACTOR apart; the coarsest has at most FULL_SAMPLES samples, all free.
 COARSE_FACTOR = 4
@@ -121,6 +129,7 @@ class LimitedProfile:
             "peaks": self.peaks,
             "lp_solves": self.lp_solves,
             "cuts": self.cuts,
+            "lower_bound_proof": str(self.extra.get("lower_bound_proof", "")),
         }
 
 
@@ -151,6 +160,9 @@ class _Level:
         self.sols: dict[int, LPSolution] = {}
         self.t: dict[int, float] = {}
         self.own = False  # the reference is this level's own solution
+        self.undecided: set[int] = set()  # counts where HiGHS gave no verdict with any method
+        self.reachable: int | None = None  # from this count on the target is proved reachable (final rate)
+        self.deadline = math.inf  # time.perf_counter() after which the search gives up (says so)
 
     @property
     def full(self) -> bool:
@@ -162,22 +174,35 @@ class _Level:
         runs, K_ref = self.ref
         return map_runs(runs, K_ref, K, self.width)
 
-    def _cap(self, K: int) -> None:
-        if K > self.K_cap:
-            names = ", ".join(f"limits.{n}" for n in self.lp.limits.active)
-            raise GoalError(
-                names,
-                f"no move within {self.K_cap / self.rate:.4g} s ({MAX_FACTOR} x the unlimited move) satisfies the limits; relax them",
-            )
-
     def probe(self, K: int) -> float:
+        """``t(K)``: an upper bound on ``t*(K)`` (exact with every sample free); ``inf`` if HiGHS gave no verdict."""
         if K not in self.t:
-            self._cap(K)
-            sol = self.lp.solve(K, self.segments(K)) if self.ref is not None else None
-            if sol is None and self.ref is not None:  # the runs cannot reach the target: wider windows
-                sol = self.lp.solve(K, map_runs(self.ref[0], self.ref[1], K, WIDE * max(self.width, OWN_WIDTH)))
+            if time.perf_counter() > self.deadline:
+                raise _OutOfTime(K)
+            if K > self.K_cap:
+                raise _BeyondCap(K)
+            sol = None
+            if self.ref is not None:
+                for width in (None, WIDE * max(self.width, OWN_WIDTH)):  # the runs cannot reach: wider windows
+                    seg = self.segments(K) if width is None else map_runs(self.ref[0], self.ref[1], K, width)
+                    try:
+                        sol = self.lp.solve(K, seg)
+                    except LPUndecided:
+                        sol = None
+                    if sol is not None:
+                        break
             if sol is None:  # no windows, or still none: every sample free (seconds at 1 kHz)
-                sol = self.lp.solve(K)
+                try:
+                    sol = self.lp.solve(K)
+                    if sol is None and self.reachable is not None and K >= self.reachable:
+                        # K samples reach the target (the unlimited optimum, held at rest, proves it):
+                        # "infeasible" here is numerical, not a verdict
+                        raise LPUndecided(f"limited planner: no LP verdict at {K} samples")
+                except LPUndecided:
+                    # no verdict: this K says nothing (never "infeasible"); the search steps past it
+                    self.t[K] = math.inf
+                    self.undecided.add(K)
+                    return math.inf
             if sol is None:
                 m = self.lp.model
                 turns = ", ".join(f"{w / self.rate / math.pi:.6g}" for w in m.omega)
@@ -193,18 +218,51 @@ class _Level:
                 self.own = True
         return self.t[K]
 
+    def anchor(self, K: int) -> bool:
+        """Re-anchor the windows on the exact optimum at ``K`` (every sample free); forget window probes.
+
+        False (nothing changed) if that LP gives no solution or no verdict, or is too large.
+        """
+        if K > FULL_LP_MAX_SAMPLES:
+            return False
+        try:
+            sol = self.lp.solve(K)
+        except LPUndecided:
+            return False
+        if sol is None:
+            return False
+        self.forget()
+        self.sols[K], self.t[K] = sol, sol.t
+        self.ref = (solution_runs(sol, self.lp.um, self.lp.slew), K)
+        self.width, self.own = OWN_WIDTH, True
+        return True
+
     def forget(self) -> None:
         """After new cuts: every probe may have changed."""
         self.sols.clear()
         self.t.clear()
+        self.undecided.clear()
 
     def fewest(self, guess: int, lo: int) -> int:
-        """Fewest ``K > lo`` with ``t(K) <= 1``: secant steps from ``guess``, bracketed, then bisection."""
+        """Fewest ``K > lo`` with ``t(K) <= 1``: secant steps from ``guess``, bracketed, then bisection.
+
+        Until a feasible count is found the steps grow geometrically (at most
+        doubling the count, at least one more sample than the largest probe): a
+        flat ``t`` (a secant crossing far away) cannot jump past the cap, and a
+        cap reached this way is only reported (:class:`_BeyondCap`), never read
+        as "infeasible".  Every count claimed impossible is proved by :func:`_prove`.
+        """
         K = max(guess, lo + 1)
         step = 1
         widths: list[int] = []
         for _ in range(200):
             self.probe(K)
+            if len(self.undecided) >= 3 and not any(v <= 1.0 for v in self.t.values()):
+                raise SolverError(
+                    f"limited planner: HiGHS gave no verdict at {len(self.undecided)} sample counts "
+                    f"({', '.join(str(k) for k in sorted(self.undecided)[:4])}); the limits are not proved "
+                    "impossible; nothing is returned"
+                )
             feas = [k for k, v in self.t.items() if v <= 1.0 and k > lo]
             hi = min(feas) if feas else None
             below = max([lo] + [k for k, v in self.t.items() if v > 1.0 and (hi is None or k < hi)])
@@ -213,7 +271,8 @@ class _Level:
             cand = self._secant()
             if hi is None:
                 top = max(self.t)
-                cand = top + step if cand is None or cand <= top else cand
+                cand = top + step if cand is None or cand <= top else min(cand, 2 * top + 1)
+                cand = min(cand, max(self.K_cap, top + 1))  # the cap itself is probed before giving up
                 step *= 2
             else:
                 widths.append(hi - below)
@@ -235,7 +294,7 @@ class _Level:
 
     def crossing(self) -> float | None:
         """Real-valued ``K`` where the secant through the two probes nearest ``t = 1`` crosses 1."""
-        pts = sorted(self.t.items(), key=lambda kv: abs(kv[1] - 1.0))[:2]
+        pts = sorted(((k, v) for k, v in self.t.items() if math.isfinite(v)), key=lambda kv: abs(kv[1] - 1.0))[:2]
         if len(pts) < 2 or pts[0][1] == pts[1][1]:
             return None
         (k1, t1), (k2, t2) = pts
@@ -254,6 +313,14 @@ class _Level:
             if smooth is not None:
                 sol = smooth
         return solution_runs(sol, self.lp.um, self.lp.slew), K
+
+
+class _OutOfTime(Exception):
+    """The planning-time budget ran out (no claim about any count)."""
+
+
+class _BeyondCap(Exception):
+    """The search reached ``K_cap`` samples without a feasible count (no claim about larger counts)."""
 
 
 def _extrapolate(times: list[tuple[float, float]], dt: float) -> float:
@@ -287,29 +354,87 @@ def _prove(level: _Level, K: int) -> bool | ProofKind | str | None:
     t = level.probe(K)
     if t <= 1.0:
         return False
+    if K in level.undecided:
+        return None
     sol = level.sols[K]
     if level.full or sol.segments.n_free == K:
         if proves_infeasible(dual_bound(lp, sol)[0]):
             return ProofKind.DUAL
     else:
-        if proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
+        liftable = K * lp.sys.n <= LIFT_MAX_UNKNOWNS
+        if liftable and proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
             return ProofKind.DUAL
         # wider windows around this structure, lifted again; then every sample free
-        wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
+        try:
+            wide = lp.solve(K, map_runs(level.ref[0], level.ref[1], K, WIDE * max(level.width, OWN_WIDTH)))
+        except LPUndecided:
+            wide = None
         if wide is not None:
             if wide.t <= 1.0:
                 level.sols[K], level.t[K] = wide, wide.t
                 return False
-            if proves_infeasible(dual_bound(lp, lift(lp, wide))[0]):
+            if liftable and proves_infeasible(dual_bound(lp, lift(lp, wide))[0]):
                 return ProofKind.DUAL
     # every sample free: the feasibility LP with every limit loosened by LOOSEN (so that "infeasible"
     # is not a rounding artefact).  Its scaled twin (min t) is the same size but 100x slower in HiGHS's
     # interior-point method (1 kHz deflection limit: 160 s against 0.7 s).
-    full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
+    if K > FULL_LP_MAX_SAMPLES or time.perf_counter() > level.deadline:
+        return None  # the full LP would take many seconds: K stays unproved (reported, not hidden)
+    try:
+        full = lp.solve(K, mode="feasible", t_fix=1.0 + LOOSEN)
+    except LPUndecided:
+        return None  # no verdict: K - 1 stays unproved (the count is reported not proved fewest)
     if full is None:
-        return f"{ProofKind.HIGHS} ({lp.infeasible_method})"
+        # one method's verdict on one formulation: a proof only if the independent formulation agrees
+        said, method = independent_feasible(
+            lp.problem, K, lp.dt, lp.limits, scale=1.0 + LOOSEN, cuts=lp.cuts, deadline=level.deadline
+        )
+        if said is False:
+            return f"{ProofKind.HIGHS} ({lp.infeasible_method}, confirmed by an independent state-space LP ({method}))"
+        return None
     level.sols[K], level.t[K] = full, 1.0
     return False
+
+
+#: No LP with every sample free (proof or re-anchoring) above this many samples: at 4,000 samples the
+#: feasibility LP and its independent confirmation take 5-30 s on a loaded machine, at 13,000 one LP
+#: takes 10 s and more; beyond it a count the dual bounds cannot settle is left unproved (and says so).
+FULL_LP_MAX_SAMPLES = 3000
+#: Lifting window multipliers to every sample is one sparse LU of about ``K n`` unknowns: at 42,000
+#: (4,200 samples, 10 states) it takes 10 s; above this the lifted bound is not tried.
+LIFT_MAX_UNKNOWNS = 30000
+#: Times the search may re-anchor its windows on an exact optimum when they proved misleading.
+MAX_ANCHORS = 2
+#: The prefix of the impossibility proof covers at most this many samples.
+PREFIX_SAMPLES = 4000
+
+
+def _prove_impossible(problem: MoveProblem, dt: float, limits: Limits, K: int, exc: _BeyondCap) -> None:
+    """Raise :class:`GoalError` if no move of any length meets the limits (proved), else return.
+
+    The proof: the limits cannot be held even over the first ``M`` samples
+    with no arrival asked, and both HiGHS methods agree on the independent
+    state-space formulation (:func:`.certify.prefix_feasible`).  A ``K``-sample
+    move held at rest after its arrival would hold them, so none exists.
+    """
+    M = min(K, PREFIX_SAMPLES)
+    said, method = prefix_feasible(problem, M, dt, limits, scale=1.0 + LOOSEN)
+    if said is False:
+        names = ", ".join(f"limits.{n}" for n in limits.active)
+        raise GoalError(
+            names,
+            f"no move satisfies the limits: from this initial state they are broken within {M} samples "
+            f"({M * dt:.4g} s) whatever the command (proved: {method} on the state-space LP); relax them",
+        ) from exc
+
+
+def _not_found(limits: Limits, K_cap: int, rate: float, exc: _BeyondCap) -> None:
+    """Nothing found up to the hard cap and nothing proved impossible: say exactly that."""
+    names = ", ".join(f"limits.{n}" for n in limits.active)
+    raise SolverError(
+        f"limited planner: no sequence found up to {K_cap} samples ({K_cap / rate:.4g} s, {MAX_FACTOR} x the "
+        f"unlimited move) and the limits ({names}) are not proved impossible; nothing is returned"
+    ) from exc
 
 
 def _accept(level: _Level, K: int):
@@ -320,9 +445,12 @@ def _accept(level: _Level, K: int):
     lp = level.lp
     seg = level.sols[K].segments
     for _attempt in ("this structure", "every sample free"):
-        sol = lp.solve(K, seg, mode="smooth")
-        if sol is None and seg.n_free < K:
-            sol = lp.solve(K, mode="smooth")
+        try:
+            sol = lp.solve(K, seg, mode="smooth")
+            if sol is None and seg.n_free < K:
+                sol = lp.solve(K, mode="smooth")
+        except LPUndecided:
+            sol = None
         if sol is None:
             return None
         u = lp.exact_commands(sol.u)
@@ -349,10 +477,21 @@ def plan_limited_zoh(
     FlexmotionError
         A limit out of range, or an initial state already outside a limit.
     GoalError
-        No move within ``MAX_FACTOR`` times the unlimited sample count meets the limits.
+        The limits are proved impossible (broken within the first samples whatever the command).
     SolverError
-        No sequence passed the exact checks.
+        No sequence passed the exact checks, none was found up to ``MAX_FACTOR`` times the unlimited
+        count, or the ``TIME_BUDGET_S`` planning budget ran out; none of these claims the limits impossible.
     """
+    try:
+        return _plan_limited(problem, rate_hz, limits, unlimited)
+    except _OutOfTime as exc:
+        raise SolverError(
+            f"limited planner: no plan within the {TIME_BUDGET_S:g} s planning budget (the search reached "
+            f"{exc.args[0]} samples); the limits are not proved impossible; nothing is returned"
+        ) from exc
+
+
+def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimited: SampledProfile | None):
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
     dt = 1.0 / rate
@@ -379,7 +518,9 @@ def plan_limited_zoh(
             time.perf_counter() - t0,
         )
     proved = K0 if unlimited.minimal else unlimited.lower_bound_samples  # every K < proved is infeasible
-    K_cap = max(K0 * MAX_FACTOR, K0 + 1000)
+    deadline = t0 + TIME_BUDGET_S
+    K_cap = max(K0 * MAX_FACTOR, K0 + CAP_EXTRA)
+    K_soft = max(K0 * SOFT_FACTOR, K0 + CAP_EXTRA // 10)  # beyond this, first try to prove the limits impossible
     T_star = unlimited.continuous.duration if unlimited.continuous is not None else (proved - 1) * dt
     # levels, coarsest first
     rates = [rate]
@@ -390,15 +531,32 @@ def plan_limited_zoh(
     for r in rates:
         final = r == rate
         width = 0 if ref is None else MAP_WIDTH * COARSE_FACTOR + 2
-        level = _Level(problem, r, limits, round(K_cap * r / rate) + 10, lp if final else None, ref, width)
+        level = _Level(problem, r, limits, round(K_soft * r / rate) + 10, lp if final else None, ref, width)
+        level.reachable = K0 if final else None
+        level.deadline = level.lp.deadline = deadline
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
         guess = math.ceil(_extrapolate(times, 1.0 / r) * r - 1e-9) if times else lo + 1
         try:
             K = level.fewest(guess, lo)
+        except _BeyondCap as exc:
+            if not final:
+                ref = None  # this coarse rate finds nothing below the soft cap: skip it (it only guides)
+                skipped.append(r)
+                solves += level.lp.solves
+                continue
+            # nothing up to the soft cap: impossible (proved) or keep searching up to the hard cap
+            _prove_impossible(problem, dt, limits, K_soft, exc)
+            level.K_cap = K_cap
+            try:
+                K = level.fewest(max(level.t) + 1, lo)
+            except _BeyondCap as exc2:
+                _not_found(limits, K_cap, rate, exc2)
         except UnreachableError:
             if final:
                 raise
-            ref = None  # a coarse rate the user never asked for cannot steer a mode: skip it
+            # a coarse rate the user never asked for cannot steer a mode, or finds nothing below
+            # the cap: skip it (it only guides the search)
+            ref = None
             skipped.append(r)
             solves += level.lp.solves
             continue
@@ -412,12 +570,21 @@ def plan_limited_zoh(
     reject = proved - 1  # counts up to here are out: proved infeasible, or no sequence passed the checks
     proof = ProofKind.UNLIMITED
     rounds = 2 * MAX_CUT_ROUNDS
+    anchors = 0
     for _ in range(rounds):
         # the proof for K - 1, moving down while K - 1 turns out feasible
         while K - 1 >= proved and K - 1 > reject:
             res = _prove(level, K - 1)
             if res is False:
                 K -= 1
+                if anchors < MAX_ANCHORS and level.anchor(K):
+                    # the windows misled the search (a coarse level's structure was wrong): search
+                    # again around the exact optimum at K instead of stepping down one sample at a time
+                    anchors += 1
+                    try:
+                        K = level.fewest(K, max(proved - 1, reject))
+                    except _BeyondCap as exc:  # cannot happen below a feasible K; kept honest anyway
+                        _not_found(limits, K_cap, rate, exc)
                 continue
             if res:
                 proved, proof = K, res
@@ -426,16 +593,20 @@ def plan_limited_zoh(
         if isinstance(res, tuple):
             accepted = (K, *res)
             break
-        if res == "cuts":  # the relaxation changed: search again from K
-            level.forget()
-            K = level.fewest(K, max(proved - 1, reject))
-        else:  # feasible only within the margin: one more sample
-            reject = K
-            K = level.fewest(K + 1, K)
+        try:
+            if res == "cuts":  # the relaxation changed: search again from K
+                level.forget()
+                K = level.fewest(K, max(proved - 1, reject))
+            else:  # feasible only within the margin: one more sample
+                reject = K
+                K = level.fewest(K + 1, K)
+        except _BeyondCap as exc:
+            _not_found(limits, K_cap, rate, exc)
     if accepted is None:
         raise SolverError(
             f"limited planner: no sequence passed the exact limit checks in {rounds} rounds "
-            f"({len(lp.cuts)} deflection cuts added, counts up to {reject} rejected); relax the limits"
+            f"({len(lp.cuts)} deflection cuts added, counts up to {reject} rejected); the limits are not proved "
+            "impossible; nothing is returned"
         )
     K, u, peaks = accepted
     minimal = K == proved

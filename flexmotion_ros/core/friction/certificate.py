@@ -14,23 +14,49 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from enum import Enum
 
 import numpy as np
 
+from ..model.boundary import MoveProblem
 from ..simulation.exact import PiecewiseConstant
 from ..simulation.modal_response import ModalResponse
 from ..time_optimal.switching import isolate_roots, sample_grid
 from ..tolerances import HAMILTONIAN_TOL, SWITCH_RESIDUAL_TOL
-
-if TYPE_CHECKING:
-    from .extremal import Extremal
-
+from .extremal import Extremal, newton_solve
 
 CLAIM = (
     "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
     "velocity reversals): necessary conditions only; global time-optimality is not proved (friction makes the "
     "reachable sets non-convex); lower_bound_s is a proved bound"
+)
+
+
+class FrictionStatus(str, Enum):
+    """What was proved about a move under friction (:attr:`FrictionCertificate.status`).
+
+    None of them claims global time-optimality (friction makes the reachable
+    sets non-convex); every returned move passed the exact event-located check
+    (rest at the target, ``|u| <= u_max``) whatever its status.
+    """
+
+    #: The hybrid Pontryagin conditions hold, with the sign structure proved per costate piece (:data:`CLAIM`).
+    EXTREMAL = "extremal"
+    #: An exact bang-bang move whose extremal check failed (the message says which condition).
+    NOT_EXTREMAL = "exact_not_extremal"
+    #: An exact piecewise-constant move (the fewest-sample LP at a coarse rate); no extremal was found.
+    SAMPLED = "exact_sampled"
+    #: Already at rest at the target: nothing to do.
+    AT_REST = "at_rest"
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+
+#: What an ``exact_sampled`` move claims.
+SAMPLED_CLAIM = (
+    "exact piecewise-constant move (the fewest samples found at a coarse rate for its velocity-sign pattern, "
+    "checked by the event-located friction simulation); no optimality is claimed; lower_bound_s is a proved bound"
 )
 
 
@@ -57,6 +83,8 @@ class FrictionCertificate:
         What is and is not proved (default :data:`CLAIM`).
     message : str
         Why it failed, ``"ok"``, or a note (``"already at rest"``).
+    status : FrictionStatus
+        What was proved (default: ``EXTREMAL`` if ``passed``, else ``NOT_EXTREMAL``).
     """
 
     passed: bool
@@ -68,6 +96,12 @@ class FrictionCertificate:
     costate_final: np.ndarray
     claim: str = CLAIM
     message: str = "ok"
+    status: FrictionStatus | None = None
+
+    def __post_init__(self) -> None:
+        if self.status is None:
+            status = FrictionStatus.EXTREMAL if self.passed else FrictionStatus.NOT_EXTREMAL
+            object.__setattr__(self, "status", status)
 
     def to_dict(self) -> dict:
         """JSON-friendly summary."""
@@ -81,6 +115,7 @@ class FrictionCertificate:
             "costate_final": [float(v) for v in self.costate_final],
             "claim": self.claim,
             "message": self.message,
+            "status": str(self.status),
         }
 
 
@@ -200,3 +235,24 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
         claim=CLAIM,
         message="; ".join(reasons) or "ok",
     )
+
+
+#: Re-solves with the switches moved to the sign changes of B^T lambda.
+CONSISTENCY_ROUNDS = 4
+
+
+def consistent_switches(
+    problem: MoveProblem, ext: Extremal, y: np.ndarray, F: float, scale: np.ndarray, budget: list[int] | None = None
+) -> tuple[Extremal, np.ndarray] | None:
+    """Move the switches to the sign changes of ``B^T lambda`` and re-solve until they agree; None if not."""
+    for _ in range(CONSISTENCY_ROUNDS):
+        zeros, sign0 = switching_zeros(ext, y)
+        if zeros is None:
+            return None
+        if same_switches(zeros, ext.unpack(y)[0], y[ext.L]):
+            return ext, y
+        levels = problem.u_max * sign0 * (1.0 - 2.0 * (np.arange(zeros.size + 1) % 2))
+        ok, ext, y = newton_solve(problem, levels, F, scale, np.concatenate([zeros, y[ext.L :]]), budget=budget)
+        if not ok:
+            return None
+    return None

@@ -33,6 +33,8 @@ class Extremal:
         self.L = levels.size - 1
         self.s = scale
         self.sig_scale = 1.0
+        #: Residual evaluations left (shared by the caller across solves: a list of one int); None: no limit.
+        self.budget: list[int] | None = None
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -68,6 +70,10 @@ class Extremal:
         return out
 
     def residual(self, y: np.ndarray, want_lam_jac: bool = False):
+        if self.budget is not None:
+            if self.budget[0] <= 0:
+                return None  # out of evaluations: the solve fails (the caller moves on)
+            self.budget[0] -= 1
         t_sw, T, lam = self.unpack(y)
         u = PiecewiseConstant.from_switches(t_sw, self.levels, T)
         run = self.sys.run(self.x0, u, [T], lock_after=float(t_sw[-1]) if self.L else 0.0)
@@ -147,3 +153,29 @@ class Extremal:
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))
         return rn <= NEWTON_TOL, y, rn
+
+
+def sigma_scale(ext: Extremal, y: np.ndarray) -> float:
+    """Scale of ``B^T lambda`` (fixed during one Newton solve)."""
+    lam = ext.unpack(y)[2]
+    return max(float(np.max(np.abs(lam))) * float(np.max(np.abs(ext.sys.B))), 1e-300)
+
+
+def newton_solve(
+    problem: MoveProblem,
+    levels: np.ndarray,
+    F: float,
+    scale: np.ndarray,
+    y: np.ndarray,
+    max_iter: int = 20,
+    budget: list[int] | None = None,
+) -> tuple[bool, Extremal, np.ndarray]:
+    """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
+
+    ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place).
+    """
+    ext = Extremal(problem, levels, F, scale)
+    ext.budget = budget
+    ext.sig_scale = sigma_scale(ext, y)
+    ok, y_new, _ = ext.newton(y, max_iter=max_iter)
+    return ok, ext, y_new

@@ -1,6 +1,6 @@
-"""Time-optimal moves under rigid-body Coulomb friction: the bang-bang extremal by continuation.
+"""Time-optimal moves under rigid-body Coulomb friction: the bang-bang extremal, found, not only continued.
 
-The friction model and the exact event-located simulator are :mod:`.friction`.
+The friction model and the exact event-located simulator are :mod:`.contact`.
 
 Time-optimal moves
 ------------------
@@ -10,15 +10,28 @@ linear.  The hybrid maximum principle gives ``u = -u_max sgn(B^T lambda)``,
 ``lambda' = -A^T lambda`` between events and a jump of ``lambda`` along
 ``C^T`` at each velocity reversal (``lambda^- = S^T lambda^+``, ``S`` the
 saltation matrix), which keeps the Hamiltonian continuous.  The switch times,
-the duration and ``lambda(T)`` are found by Newton's method on these
-conditions (final state, ``B^T lambda(t_j) = 0``, ``H = 0``), by continuation
-in ``F`` from the certified frictionless optimum.  The result is checked by
-the exact friction simulation (rest at the target) and certified as a
-Pontryagin extremal (sign structure proved per costate piece).  The friction
-system is not linear, so the extremal is *not* proved globally optimal; the
-rigid-body friction optimum is reported as a proved lower bound (c = 0, from
-rest).  The extremal conditions are checked by :mod:`.friction_certificate`;
-the zero-order-hold version is :mod:`.friction_zoh`.
+the duration and ``lambda(T)`` solve these conditions (final state,
+``B^T lambda(t_j) = 0``, ``H = 0``) by Newton's method (:mod:`.extremal`)
+from a starting point found in turn by
+
+1. continuation in ``F`` from the certified frictionless optimum
+   (:mod:`.continuation`, bounded: it stops where the structure changes);
+2. the structure of the fewest-sample move at a coarse rate
+   (:mod:`.sampled_lp`: between reversals the friction is a known force, so
+   for a velocity-sign pattern the move is an LP; the pattern is iterated to
+   consistency), read off and polished (:mod:`.structure`).
+
+The result is checked by the exact friction simulation (rest at the target)
+and certified as a Pontryagin extremal (sign structure proved per costate
+piece, :mod:`.certificate`).  The friction system is not linear, so an
+extremal is *not* proved globally optimal; the rigid-body friction optimum is
+reported as a proved lower bound (c = 0, from rest).  When no extremal is
+found (e.g. the optimum rests on the way, ``|u| = F`` holding the body while
+the modes are steered: a stick arc, outside the bang-bang conditions), the
+exact sampled move is returned with status ``exact_sampled``; an exact
+bang-bang move whose check failed has status ``exact_not_extremal``.  The
+status enum and message say exactly what was proved.  The zero-order-hold
+version is :mod:`.zoh`.
 """
 
 from __future__ import annotations
@@ -36,14 +49,12 @@ from ..results import BangBangProfile
 from ..simulation.exact import PiecewiseConstant
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import FINAL_STATE_RTOL
-from .certificate import (
-    FrictionCertificate,
-    certify_friction,
-    same_switches,
-    switching_zeros,
-)
+from .certificate import SAMPLED_CLAIM, FrictionCertificate, FrictionStatus, certify_friction
 from .contact import FrictionSystem
+from .continuation import continue_in_friction
 from .extremal import Extremal
+from .sampled_lp import FrictionLP, fastest_samples
+from .structure import extremal_from_samples, has_stick_arcs
 
 
 def check_coulomb_force(coulomb_force, u_max: float) -> float:
@@ -124,6 +135,8 @@ class FrictionProfile:
     continuation_steps: int = 0
     solve_time_s: float = 0.0
     method: str = "time_optimal_friction"
+    #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
+    sample_period: float | None = None
 
     @property
     def certified(self) -> bool:
@@ -156,7 +169,9 @@ class FrictionProfile:
         }
 
 
-def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> FrictionProfile:
+def plan_time_optimal_friction(
+    problem: MoveProblem, coulomb_force: float, rate_hz: float | None = None
+) -> FrictionProfile:
     """Bang-bang move to rest under rigid-body Coulomb friction, checked by exact simulation.
 
     Parameters
@@ -165,6 +180,9 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
         Model, bound, initial state, target (``None``: final position free).
     coulomb_force : float
         ``F`` in ``[0, u_max)`` (N).
+    rate_hz : float, optional
+        Command rate (Hz) of the sampled plan to come: the coarse sampled moves use a whole number of
+        its periods, so an ``exact_sampled`` result is itself a command sequence at this rate.
 
     Returns
     -------
@@ -195,6 +213,7 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
             hamiltonian_max_abs=0.0,
             costate_final=np.zeros(model.n_states),
             message="already at rest",
+            status=FrictionStatus.AT_REST,
         )
         return FrictionProfile(
             problem=problem,
@@ -212,82 +231,160 @@ def plan_time_optimal_friction(problem: MoveProblem, coulomb_force: float) -> Fr
             continuation_steps=0,
             solve_time_s=time.perf_counter() - t0,
         )
-    levels = np.asarray(base.levels, float)
-    # per-state scale: how large each state gets during the frictionless move
-    u0 = base.input()
-    grid = np.linspace(0.0, base.duration, 65)
-    fs0 = FrictionSystem.for_model(model, 0.0, closed_form=True)
-    xs = fs0.run(problem.x0, u0, grid).states
-    xf = model.rest_state(problem.target if problem.target is not None else 0.0)
+    scale, template = _frictionless_scales(problem, base)
+    direction = 1.0 if (problem.target if problem.target is not None else 0.0) >= problem.x0[0] else -1.0
+
+    def monotone(tau):
+        return np.full(np.shape(tau), direction)
+
+    best: FrictionProfile | None = None
+    # 1. the fast path: continuation in F from the frictionless optimum (bounded)
+    cont = continue_in_friction(problem, base, F, scale)
+    steps = 0
+    if cont is not None:
+        ext, y, steps = cont
+        best = _better(best, _try_assemble(ext, y, base, lb, steps, t0))
+        if best is not None and best.certified:
+            return best
+    # 2. the structure of the fewest-sample move at a coarse rate (friction as a known force on each
+    #    velocity-sign piece, the pattern iterated to consistency), polished by Newton
+    # the first count guessed from the rigid body's slow-down under friction (c = 0 from rest)
+    rigid0 = rigid_friction_time(model, problem.u_max, 0.0, problem.x0, problem.target)
+    T_ref, sampled = base.duration * (lb / rigid0 if lb and rigid0 else 1.0), None
+    for K_c in STRUCTURE_SAMPLES:
+        sol = None
+        for _ in range(3):  # a move much slower than the frictionless one: coarser samples
+            dt_c = T_ref / K_c
+            if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
+                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+            lp = FrictionLP(problem, F, dt_c)
+            sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
+            if sol is None:  # the frictionless move's reversals may not suit: a monotone move
+                sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
+            if sol is not None:
+                break
+            T_ref *= 4.0
+        if sol is None:
+            break
+        sampled = (lp, sol)
+        T_ref = sol.K * lp.dt
+        if has_stick_arcs(sol.u, F, sol.t):
+            # the body rests for a while (|u| = F holds it while the modes are steered): no bang-bang
+            # extremal of the sliding system describes that; the sampled move is the answer
+            break
+        got = extremal_from_samples(problem, sol.u, lp.dt, F, scale, sol.t, [STRUCTURE_EVALS])
+        if got is not None:
+            best = _better(best, _try_assemble(*got, base, lb, steps, t0))
+            if best is not None and best.certified:
+                return best
+    if best is not None:
+        return best  # exact, not a proved extremal: the certificate says which condition failed
+    if sampled is not None:
+        prof = _sampled_profile(*sampled, base, lb, steps, t0)
+        if prof is not None:
+            return prof
+    raise SolverError(
+        "friction planner: neither the continuation from the frictionless optimum nor the structure of a "
+        "sampled move gave an exact move; nothing is returned"
+    )
+
+
+#: Samples of the coarse sampled moves the structure is read from, coarsest first.
+STRUCTURE_SAMPLES = (64, 192)
+#: Residual evaluations (exact friction runs) Newton may spend on the structure of one sampled move.
+STRUCTURE_EVALS = 60
+
+
+def _frictionless_scales(problem: MoveProblem, base: BangBangProfile):
+    """Per-state scale (how large each state gets in the frictionless move) and its velocity-sign
+    template (sign of ``v`` at normalised time ``tau``, the first guess of the friction pattern)."""
+    grid = np.linspace(0.0, base.duration, 257)
+    fs0 = FrictionSystem.for_model(problem.model, 0.0, closed_form=True)
+    xs = fs0.run(problem.x0, base.input(), grid).states
+    xf = problem.model.rest_state(problem.target if problem.target is not None else 0.0)
     scale = np.max(np.abs(xs - xf), axis=0) + np.abs(problem.x0 - xf)
     scale = np.where(scale > 0.0, scale, 1.0)
-    lam0 = np.asarray(base.certificate.costate_final, float)
-    y = np.concatenate([base.switch_times, [base.duration], lam0])
+    v = xs[:, 1]
+    direction = 1.0 if (xf[0] - problem.x0[0]) >= 0.0 else -1.0
+    sgn = np.where(v > 0.0, 1.0, np.where(v < 0.0, -1.0, direction))
+    mids = np.sign(sgn[:-1] + sgn[1:])
+    mids[mids == 0.0] = direction
 
-    def solve(levels, F_try, y):
-        ext = Extremal(problem, levels, F_try, scale)
-        ext.sig_scale = _sigma_scale(ext, y)
-        ok, y_new, _ = ext.newton(y)
-        return ok, ext, y_new
+    def template(tau, mids=mids):
+        return mids[np.minimum((np.asarray(tau) * mids.size).astype(int), mids.size - 1)]
 
-    done, step, steps = 0.0, F, 0
-    ext = None
-    strict = True  # follow structure changes; False: keep the structure (a feasible move, not an extremal)
-    while ext is None or done < F:
-        F_try = min(F, done + step)
-        ok, ext_new, y_new = solve(levels, F_try, y)
-        steps += 1
-        lev_new = levels
-        if ok and strict:
-            # the sign changes of B^T lambda must be the switches: re-solve with switches where they are
-            ok = False
-            for _ in range(4):
-                zeros, sign0 = switching_zeros(ext_new, y_new)
-                if zeros is None:
-                    break
-                if same_switches(zeros, ext_new.unpack(y_new)[0], y_new[ext_new.L]):
-                    ok = True
-                    break
-                lev_new = problem.u_max * sign0 * (1.0 - 2.0 * (np.arange(zeros.size + 1) % 2))
-                ok2, ext_new, y_new = solve(lev_new, F_try, np.concatenate([zeros, y_new[ext_new.L :]]))
-                if not ok2:
-                    break
-        if ok:
-            levels, y, done, ext = lev_new, y_new, F_try, ext_new
-            step = min(2.0 * step, F - done) if done < F else step
-        else:
-            step *= 0.5
-            if step < 1e-2 * max(F, 1e-300):
-                # a pair of switches may have merged (its interval shrinks to zero where the
-                # structure ends): drop the closest pair and re-solve at the last friction force
-                t_sw, T_cur = y[: levels.size - 1], y[levels.size - 1]
-                gaps = np.diff(t_sw)
-                dropped = False
-                if gaps.size and gaps.min() < 0.1 * T_cur and steps <= 200:
-                    k = int(np.argmin(gaps))
-                    lev2, y2 = np.delete(levels, [k + 1, k + 2]), np.delete(y, [k, k + 1])
-                    ok2, ext2, y2 = solve(lev2, done, y2)
-                    if ok2:
-                        levels, y, ext, dropped = lev2, y2, ext2, True
-                        step = max(F - done, 0.0) * 0.25
-                if not dropped and strict:
-                    # the switching function changes sign where the structure cannot follow (e.g. at a
-                    # velocity reversal, where the costate jumps): go on with this structure; the move
-                    # stays exact and is checked, the certificate will say it is not an extremal
-                    strict, dropped = False, True
-                    step = max(F - done, 0.0)
-                if not dropped:
-                    raise SolverError(
-                        f"friction planner: continuation from the frictionless optimum stalled at coulomb_force = {done:g} N "
-                        f"(the switch structure changes); nothing is returned"
-                    )
-    return _assemble_friction(ext, y, base, lb, steps, t0)
+    return scale, template
 
 
-def _sigma_scale(ext: Extremal, y: np.ndarray) -> float:
-    """Scale of ``B^T lambda`` (fixed during one Newton solve)."""
-    lam = ext.unpack(y)[2]
-    return max(float(np.max(np.abs(lam))) * float(np.max(np.abs(ext.sys.B))), 1e-300)
+def _better(a: FrictionProfile | None, b: FrictionProfile | None) -> FrictionProfile | None:
+    """The certified one, else the shorter."""
+    if a is None or b is None:
+        return a if b is None else b
+    if a.certified != b.certified:
+        return a if a.certified else b
+    return a if a.duration <= b.duration else b
+
+
+def _try_assemble(ext, y, base, lb, steps, t0) -> FrictionProfile | None:
+    try:
+        return _assemble_friction(ext, y, base, lb, steps, t0)
+    except SolverError:
+        return None  # missed the target in the exact check: not a move
+
+
+def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile | None:
+    """The fewest-sample move itself (piecewise constant, exact after correction), or None if it misses."""
+    problem = lp.problem
+    u = lp.exact_commands(sol)
+    if u is None:
+        return None
+    dt, K = lp.dt, sol.u.size
+    T = K * dt
+    check = FrictionSystem.for_model(problem.model, lp.F)
+    pc = PiecewiseConstant.from_samples(u, dt)
+    run = check.run(problem.x0, pc, [T, T + max(T, 1.0)])
+    xT, x_after = run.states
+    xf, I = lp.xf, lp.I
+    sc = np.max(np.abs(check.run(problem.x0, pc, np.linspace(0.0, T, 129)).states - xf), axis=0)
+    sc = np.where(sc > 0.0, sc, 1.0)
+    dev = (xT - xf)[I]
+    rel = float(np.max(np.abs(dev) / sc[I]))
+    drift = float(np.max(np.abs((x_after - xT)[I]) / sc[I]))
+    if not (rel <= FINAL_STATE_RTOL and drift <= FINAL_STATE_RTOL and np.max(np.abs(u)) <= problem.u_max):
+        return None
+    cert = FrictionCertificate(
+        passed=False,
+        switch_residual=math.inf,
+        extra_zeros=0,
+        unproved_cells=0,
+        sign_consistent=False,
+        hamiltonian_max_abs=math.inf,
+        costate_final=np.zeros(problem.model.n_states),
+        message=(
+            f"no extremal found: this is the fewest-sample move at {1.0 / dt:.4g} Hz for its velocity-sign "
+            f"pattern (exact, checked; not proved optimal)"
+        ),
+        status=FrictionStatus.SAMPLED,
+        claim=SAMPLED_CLAIM,
+    )
+    reversals = np.array([t for t, kind, _ in run.events if kind == "reversal" and t < T * (1.0 - 1e-12)])
+    return FrictionProfile(
+        problem=problem,
+        coulomb_force=lp.F,
+        switch_times=dt * np.arange(1, K),
+        levels=u,
+        duration=float(T),
+        final_state=xT,
+        final_state_error=float(np.max(np.abs(dev))),
+        final_state_error_relative=rel,
+        reversals=reversals,
+        certificate=cert,
+        frictionless_duration=float(base.duration),
+        lower_bound=lb,
+        continuation_steps=steps,
+        solve_time_s=time.perf_counter() - t0,
+        sample_period=dt,
+    )
 
 
 def _assemble_friction(

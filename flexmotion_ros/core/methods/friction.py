@@ -28,13 +28,14 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
         config, "coulomb_force", "time_optimal_friction", f"{option('coulomb_force').allowed} = [0, {problem.u_max:g})"
     )
     F = check_coulomb_force(raw, problem.u_max)
-    continuous = plan_time_optimal_friction(problem, F)
+    continuous = plan_time_optimal_friction(problem, F, rate_hz)
     sampled = plan_time_optimal_friction_zoh(move, F, rate_hz, continuous) if rate_hz else None
     info = {
         "coulomb_force": F,
         "frictionless_duration": continuous.frictionless_duration,
         "added_time_s": continuous.duration - continuous.frictionless_duration,
         "optimality": continuous.certificate.claim,
+        "friction_status": str(continuous.certificate.status),
     }
     if sampled is not None:
         info["sampled_extra_samples"] = int(sampled.extra.get("extra_samples", 0))

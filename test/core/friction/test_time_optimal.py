@@ -20,14 +20,17 @@ from scipy.integrate import solve_ivp
 
 from flexmotion_ros.core import (
     ModalModel,
+    MoveProblem,
     PiecewiseConstant,
+    PlannerConfig,
     config_from_parameters,
     rest_to_rest,
     simulate,
     two_mass,
 )
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
-from flexmotion_ros.core.friction.certificate import CLAIM
+from flexmotion_ros.core.friction import zoh as zoh_mod
+from flexmotion_ros.core.friction.certificate import CLAIM, FrictionStatus
 from flexmotion_ros.core.friction.contact import (
     FrictionSystem,
     contact_at_coordinate,
@@ -348,6 +351,16 @@ def test_sampled_friction_move_is_exact_and_bounded(wb_friction):
     assert np.allclose(sp.states[-1], x[0], atol=1e-12)
 
 
+def test_a_spent_sampled_budget_is_a_solver_failure(monkeypatch, wb_friction):
+    """Issue 18: past the sampled search's ``TIME_BUDGET_S`` the planner stops with one line naming the
+    budget (it hung for minutes before); nothing is returned."""
+    monkeypatch.setattr(zoh_mod, "TIME_BUDGET_S", -1.0)
+    prof = wb_friction[0.3]
+    with pytest.raises(SolverError, match="planning budget") as info:
+        plan_time_optimal_friction_zoh(prof.problem, 0.3, 100.0, prof)
+    assert "\n" not in str(info.value)
+
+
 def test_method_through_plan_move_and_parameter_errors():
     base = {"model.b0": 0.5, "model.omega": [math.sqrt(2.0)], "model.zeta": [0.0], "model.b": [1.0]}
     cfg = config_from_parameters({**base, "method": "time_optimal_friction", "coulomb_force": 0.2})
@@ -409,3 +422,32 @@ def test_never_returns_a_move_that_misses_the_target(w, zeta, b, gamma, frac):
     scale = 1.0 + gamma
     assert np.max(np.abs(x - model.rest_state(gamma))) < 1e-9 * scale
     assert prof.lower_bound is None or prof.duration >= prof.lower_bound * (1.0 - 1e-12)
+
+
+# ------------------------------------------------------------- issue 18
+def test_issue18_structure_change_no_longer_stalls():
+    """Issue 18: "continuation from the frictionless optimum stalled at coulomb_force = 0.123681 N (the
+    switch structure changes); nothing is returned".  Now a plan: the continuous move and the 100 Hz
+    sequence rest at the target in the exact event-located simulation (and in an independent
+    event-located ODE integration), within the bound, and the certificate says what was proved."""
+    m = ModalModel(
+        b0=0.27336967201641243,
+        c=0.0,
+        omega=(0.41991476607082023, 3.194567184025729, 5.752751792341, 51.213173874446255),
+        zeta=(0.018484257053140062, 0.10486902847816988, 0.0, 0.27982379019089254),
+        b=(0.3847736811881417, -0.505944946955234, -0.4246379851543105, 0.49891839486279355),
+    )
+    u_max, F, goal = 1.9268024392824576, 0.6088932026978997, -0.4781025580990753
+    problem = MoveProblem(m, u_max, [0.0] * 10, goal)
+    config = PlannerConfig(model=m, u_max=u_max, method="time_optimal_friction", options={"coulomb_force": F})
+    result = plan_move(config, problem, 100.0)
+    target = m.rest_state(goal)
+    cont = result.continuous
+    assert cont.certificate.status in set(FrictionStatus) and cont.certificate.message
+    assert cont.certified == (cont.certificate.status == FrictionStatus.EXTREMAL)
+    for u, T in ((cont.input(), cont.duration), (result.sampled.input(), result.sampled.duration)):
+        assert np.max(np.abs(u.levels)) <= u_max
+        x = simulate_coulomb(m, m.rest_state(), u, F, [T, T + 20.0])
+        assert np.max(np.abs(x - target)) < 1e-9
+    ref = ivp_modal_friction(m, F, m.rest_state(), cont.input())[-1]  # the continuous move, once more
+    assert np.max(np.abs(ref[:2] - target[:2])) < 1e-6

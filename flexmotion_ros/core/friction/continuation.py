@@ -1,0 +1,81 @@
+"""Continuation in the friction force from the certified frictionless optimum (the fast path).
+
+Newton's method on the extremal conditions (:class:`~.extremal.Extremal`) at
+``F_try``, from the solution at the last force reached, with the step doubled
+after a success and halved after a failure.  At every step the switches must
+be the sign changes of ``B^T lambda`` (:func:`~.structure.consistent_switches`);
+a pair of switches that merges is dropped.  Where the structure changes in a
+way this cannot follow, the continuation stops and says so (None): the
+planner then finds the structure from a sampled move (:mod:`.structure`)
+instead of guessing on.  The number of Newton solves is bounded, so a stalled
+continuation costs little.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.boundary import MoveProblem
+from ..results import BangBangProfile
+from .certificate import consistent_switches
+from .extremal import Extremal, newton_solve
+
+#: Newton iterations per solve (a step that needs more is too long: halve it).
+MAX_ITER = 12
+#: Residual evaluations (one exact friction run each) the whole continuation may spend.
+MAX_EVALS = 48
+#: Newton solves the continuation may spend before it gives up.
+MAX_SOLVES = 8
+
+
+def continue_in_friction(
+    problem: MoveProblem,
+    base: BangBangProfile,
+    F: float,
+    scale: np.ndarray,
+    max_solves: int = MAX_SOLVES,
+    max_evals: int = MAX_EVALS,
+) -> tuple[Extremal, np.ndarray, int] | None:
+    """``(extremal, y, solves)`` at friction ``F`` continued from the frictionless optimum, or None.
+
+    At most ``max_solves`` Newton solves and ``max_evals`` residual evaluations in all.
+    """
+    budget = [max_evals]
+    levels = np.asarray(base.levels, float)
+    lam0 = np.asarray(base.certificate.costate_final, float)
+    y = np.concatenate([base.switch_times, [base.duration], lam0])
+    done, step, solves = 0.0, F, 0
+    ext = None
+    while ext is None or done < F:
+        if solves >= max_solves or budget[0] <= 0:
+            return None
+        F_try = min(F, done + step)
+        ok, ext_new, y_new = newton_solve(problem, levels, F_try, scale, y, MAX_ITER, budget)
+        solves += 1
+        if ok:
+            out = consistent_switches(problem, ext_new, y_new, F_try, scale, budget)
+            ok = out is not None
+            if ok:
+                ext_new, y_new = out
+        if ok:
+            levels, y, done, ext = ext_new.levels, y_new, F_try, ext_new
+            step = min(2.0 * step, F - done) if done < F else step
+            continue
+        step *= 0.5
+        if step < 1e-2 * max(F, 1e-300):
+            # a pair of switches may have merged (its interval shrinks to zero where the structure
+            # ends): drop the closest pair and re-solve at the last force reached
+            L = levels.size - 1
+            gaps = np.diff(y[:L])
+            if not gaps.size or gaps.min() >= 0.1 * y[L]:
+                return None
+            k = int(np.argmin(gaps))
+            ok2, ext2, y2 = newton_solve(
+                problem, np.delete(levels, [k + 1, k + 2]), done, scale, np.delete(y, [k, k + 1]), budget=budget
+            )
+            solves += 1
+            if not ok2:
+                return None
+            levels, y, ext = ext2.levels, y2, ext2
+            step = max(F - done, 0.0) * 0.25
+    return ext, y, solves

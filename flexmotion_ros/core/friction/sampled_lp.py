@@ -1,0 +1,409 @@
+"""Sampled moves under rigid-body Coulomb friction as linear programs, one velocity-sign pattern at a time.
+
+Between velocity reversals the friction force is a known constant (``-F sgn(v)``
+on the rigid body), so for a fixed pattern ``s_k`` of velocity signs (one per
+sample interval, reversals on sample instants) the zero-order-hold move is
+linear: the state after ``K`` samples is ``Phi^K x0 + sum_k G_k u_k - F sum_k
+s_k H_k`` and the velocity at every instant is linear in the commands.
+:class:`FrictionLP` solves, for ``K`` samples and a pattern,
+
+    min t   s.t.   |u_k| <= t,   arrival at rest exactly,   s v_j >= 0 at every instant
+    (on both sides of it: ``v_j = 0`` where the pattern changes sign),
+
+with the sign rows generated (only the violated ones are added, a few rounds;
+with ``c <= 0`` the velocity is monotone within a sample, so signs at the
+instants are signs everywhere).  ``t <= u_max`` means ``K`` samples suffice for
+this pattern.
+
+:func:`consistent_pattern` finds a pattern by the fixed point the brief asks
+for: solve with the friction of pattern ``s`` as a known disturbance and no
+sign rows, take the signs of the resulting velocity as the next pattern, until
+they agree (then the signed LP is solved once more, so the result is exactly
+consistent).  :func:`fastest_samples` searches the fewest samples at one rate.
+
+Nothing here is a proof of optimality: a pattern is a guess, and the LP is
+exact only for it.  Every sequence a planner returns is checked by the
+event-located friction simulation of :mod:`.contact`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+from scipy.signal import lfilter
+from scipy.sparse import coo_matrix
+
+from ..model.boundary import MoveProblem
+from ..sampled.lp_tools import least_norm_correction
+from ..tolerances import HIGHS_OPTIONS
+from .contact import ClosedForm
+
+#: HiGHS options of every friction LP: tight feasibility, and a time limit (s): the dual simplex can
+#: stall for minutes on a degenerate windowed LP; such an LP counts as "no solution" (wider windows,
+#: or another count, are tried), never as a verdict.
+LP_TIME_LIMIT_S = 1.0
+LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
+#: Rounds of sign-row generation in a windowed LP.
+SIGN_ROUNDS = 8
+#: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
+MU_MAX = 1e12
+#: Fixed-point iterations of the velocity-sign pattern.
+PATTERN_ROUNDS = 3
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrictionSolution:
+    """One solved sampled friction LP.
+
+    Attributes
+    ----------
+    K : int
+        Samples.
+    u : ndarray
+        Commands (N), ``|u_k| <= t``.
+    t : float
+        The least peak ``max |u_k|`` (N) for this pattern.
+    pattern : ndarray
+        Velocity sign on every sample interval (+1 / -1).
+    G, w : ndarray
+        Arrival rows: ``G^T u = w`` (the friction of the pattern is in ``w``).
+    """
+
+    K: int
+    u: np.ndarray
+    t: float
+    pattern: np.ndarray
+    G: np.ndarray
+    w: np.ndarray
+
+
+class FrictionLP:
+    """The sampled friction LPs of one move, friction force and sample period.
+
+    Parameters
+    ----------
+    problem : MoveProblem
+    F : float
+        Coulomb force on the rigid body (N).
+    dt : float
+        Sample period (s).
+    """
+
+    def __init__(self, problem: MoveProblem, F: float, dt: float) -> None:
+        self.problem = problem
+        self.F = F
+        self.dt = dt
+        model = problem.model
+        self.cf = ClosedForm(model)
+        self.Phi, self.Gam, self.Gg = self.cf.steps(dt)
+        self.ev, self.gv, self.fv = float(self.Phi[1, 1]), float(self.Gam[1]), float(self.Gg[1])
+        self.xf = model.rest_state(problem.target if problem.target is not None else 0.0)
+        self.x0 = np.asarray(problem.x0, float) - self.xf
+        self.I = np.arange(model.n_states) if problem.include_position else np.arange(1, model.n_states)
+        self._kd: dict[int, tuple] = {}
+        self.solves = 0
+
+    def kdata(self, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(G, Hf, free, pw)``: effect of ``u_k`` and of unit friction on interval ``k`` on ``x_K``, the
+        free response, and ``ev^j`` (velocity decay per sample, ``j = 0..K``)."""
+        if K not in self._kd:
+            if len(self._kd) > 8:
+                self._kd.pop(next(iter(self._kd)))
+            resp = self.cf.resp
+            m = np.arange(K)[::-1] * self.dt
+            G = resp.expm_x_many(m, self.Gam)[:, self.I]
+            Hf = resp.expm_x_many(m, self.Gg)[:, self.I]
+            free = resp.expm_x(K * self.dt, self.x0)[self.I]
+            with np.errstate(under="ignore"):
+                pw = self.ev ** np.arange(K + 1, dtype=float)
+            self._kd[K] = (G, Hf, free, pw)
+        return self._kd[K]
+
+    def velocities(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Rigid-body velocity at instants ``0..K`` (the exact recursion, friction of pattern ``s``)."""
+        drive = self.gv * np.asarray(u, float) - (self.F * self.fv) * np.asarray(s, float)
+        v = np.empty(drive.size + 1)
+        v[0] = self.x0[1]
+        # v_{k+1} = ev v_k + drive_k: a first-order recursion (C loop), the initial value as its state
+        v[1:] = lfilter([1.0], [1.0, -self.ev], drive, zi=[self.ev * v[0]])[0]
+        return v
+
+    def solve(
+        self, K: int, s: np.ndarray, signs: bool = True, held: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> FrictionSolution | None:
+        """Least-peak commands reaching rest in ``K`` samples for pattern ``s``; None if the LP has none.
+
+        ``signs=False``: no sign constraints (the friction of ``s`` is a known disturbance only).
+        ``held = (mask, sigma)``: samples where ``mask`` is True are held at ``sigma_k t`` (a window LP:
+        only the others are free; HiGHS's presolve removes the held columns).
+
+        Scaled form (100x faster in HiGHS than ``min t`` with ``|u_k| <= t`` rows): commands
+        ``u = t z`` with ``|z_k| <= 1`` as bounds, ``mu = 1 / t`` maximised, the arrival
+        ``G^T z = mu w``; the velocities are chain variables ``y_j = mu v_j``
+        (``y_{j+1} = ev y_j + gv z_j - F fv s_j mu``), so every sign condition is a bound.
+        """
+        G, Hf, free, pw = self.kdata(K)
+        s = np.asarray(s, float)
+        w = -free + self.F * (s @ Hf)
+        nI = G.shape[1]
+        iz, iy, imu = 0, K, 2 * K + 1  # columns: z_0..z_{K-1}, y_0..y_K, mu
+        nv = 2 * K + 2
+        j = np.arange(K)
+        rows = np.concatenate(
+            [
+                np.repeat(np.arange(nI), K + 1),  # arrival
+                [nI, nI],  # y_0 = v0 mu
+                np.repeat(nI + 1 + j, 4),  # chain
+            ]
+        )
+        cols = np.concatenate(
+            [
+                np.tile(np.concatenate([iz + j, [imu]]), nI),
+                [iy, imu],
+                np.column_stack([iy + j + 1, iy + j, iz + j, np.full(K, imu)]).ravel(),
+            ]
+        )
+        vals = np.concatenate(
+            [
+                np.column_stack([G.T, -w]).ravel(),
+                [1.0, -self.x0[1]],
+                np.column_stack([np.ones(K), np.full(K, -self.ev), np.full(K, -self.gv), self.F * self.fv * s]).ravel(),
+            ]
+        )
+        A_eq = coo_matrix((vals, (rows, cols)), shape=(nI + 1 + K, nv)).tocsr()
+        lo = np.full(nv, -np.inf)
+        hi = np.full(nv, np.inf)
+        lo[iz : iz + K], hi[iz : iz + K] = -1.0, 1.0
+        if held is not None:
+            mask, sigma = held
+            lo[iz + np.flatnonzero(mask)] = hi[iz + np.flatnonzero(mask)] = np.asarray(sigma, float)[mask]
+        lo[imu], hi[imu] = 0.0, MU_MAX
+        if signs:  # s v_j >= 0 on both sides of every instant (v_j = 0 where the pattern changes sign)
+            left, right = s[:-1], s[1:]
+            yj = iy + np.arange(1, K)
+            lo[yj] = np.where((left > 0) & (right > 0), 0.0, np.where((left < 0) & (right < 0), -np.inf, 0.0))
+            hi[yj] = np.where((left < 0) & (right < 0), 0.0, np.where((left > 0) & (right > 0), np.inf, 0.0))
+        cost = np.zeros(nv)
+        cost[imu] = -1.0
+        self.solves += 1
+        res = linprog(
+            cost,
+            A_eq=A_eq,
+            b_eq=np.zeros(A_eq.shape[0]),
+            bounds=np.column_stack([lo, hi]),
+            method="highs-ds",
+            options=LP_OPTIONS,  # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep
+        )
+        if res.status != 0 or res.x[imu] <= 0.0:
+            return None
+        t = 1.0 / float(res.x[imu])
+        u = res.x[iz : iz + K] * t
+        return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w)
+
+    def solve_windowed(self, K: int, s: np.ndarray, free: np.ndarray, sigma: np.ndarray) -> FrictionSolution | None:
+        """As :meth:`solve` with signs, but only the samples in ``free`` are variables (the others held at
+        ``sigma_k t``), and the sign conditions are rows generated where violated (a few rounds).
+
+        Small LPs (the free samples and ``mu``) whatever ``K``: the 1 kHz plans use this.
+        """
+        G, Hf, free_resp, pw = self.kdata(K)
+        s = np.asarray(s, float)
+        sigma = np.asarray(sigma, float)
+        w = -free_resp + self.F * (s @ Hf)
+        Fi = np.flatnonzero(free)
+        Xi = np.flatnonzero(~free)
+        nF = Fi.size
+        # arrival: G_F^T z_F - mu w = -G_X^T sigma_X
+        A_eq = np.column_stack([G[Fi].T, -w])
+        b_eq = -(G[Xi].T @ sigma[Xi])
+        # mu v_j = mu a_j + c_j + D_jF z_F, a: initial condition and friction, c: the held samples (z = sigma)
+        a = self.velocities(np.zeros(K), s)
+        held_u = np.zeros(K)
+        held_u[Xi] = sigma[Xi]
+        c = self.velocities(held_u, np.zeros(K)) - self.x0[1] * pw  # response to the held z alone
+        change = np.flatnonzero(s[1:] != s[:-1]) + 1
+        want: set[int] = set(change.tolist())
+        cost = np.zeros(nF + 1)
+        cost[-1] = -1.0
+        bounds = np.array([(-1.0, 1.0)] * nF + [(0.0, MU_MAX)])
+        A_ub = b_ub = None
+        res = None
+        for _ in range(SIGN_ROUNDS):
+            js = np.array(sorted(want), int)
+            if js.size:
+                lag = js[:, None] - 1 - Fi[None, :]
+                D = np.where(lag >= 0, self.gv * pw[np.maximum(lag, 0)], 0.0)
+                blocks = []
+                rhs = []
+                for sd in (s[js - 1], s[np.minimum(js, K - 1)]):  # -sd (mu a_j + c_j + D z) <= 0
+                    blocks.append(np.column_stack([-sd[:, None] * D, -sd * a[js]]))
+                    rhs.append(sd * c[js])
+                A_ub, b_ub = np.vstack(blocks), np.concatenate(rhs)
+            self.solves += 1
+            res = linprog(
+                cost,
+                A_ub=A_ub,
+                b_ub=b_ub,
+                A_eq=A_eq,
+                b_eq=b_eq,
+                bounds=bounds,
+                method="highs-ds",
+                options=LP_OPTIONS,
+            )
+            if res.status != 0 or res.x[-1] <= 0.0:
+                return None
+            t = 1.0 / float(res.x[-1])
+            u = sigma * t
+            u[Fi] = res.x[:nF] * t
+            v = self.velocities(u, s)
+            scale = max(float(np.max(np.abs(v))), 1e-300)
+            depth = np.minimum(s[:-1] * v[1:K], s[1:] * v[1:K])
+            bad = set((np.flatnonzero(depth < -1e-12 * scale) + 1).tolist()) - want
+            if not bad:
+                return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w)
+            local = [j for j in bad if depth[j - 1] <= depth[max(j - 2, 0)] and depth[j - 1] <= depth[min(j, K - 2)]]
+            want |= set(local[:192]) | set(sorted(bad, key=lambda j: depth[j - 1])[:64])
+        return None
+
+    def exact_commands(self, sol: FrictionSolution) -> np.ndarray | None:
+        """``sol.u`` corrected (least-norm, within ``u_max``) so that the arrival holds to rounding AND the
+        velocity stays exactly zero where the LP has it at zero (reversal instants, stick arcs): there the
+        true system reverses or sticks exactly as the pattern assumes.  None if the correction does not fit."""
+        K = sol.K
+        _, _, _, pw = self.kdata(K)
+        v = self.velocities(sol.u, sol.pattern)
+        a = self.velocities(np.zeros(K), sol.pattern)
+        scale = max(float(np.max(np.abs(v))), 1e-300)
+        js = np.flatnonzero(np.abs(v[1:K]) <= 1e-7 * scale) + 1
+        lag = js[:, None] - 1 - np.arange(K)[None, :]
+        D = np.where(lag >= 0, self.gv * pw[np.maximum(lag, 0)], 0.0)  # v_j = a_j + D_j u
+        G = np.column_stack([sol.G, D.T])
+        w = np.concatenate([sol.w, -a[js]])
+        return least_norm_correction(G, w, sol.u, self.problem.u_max)
+
+    def pattern_of(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """The velocity sign on every interval of the move ``u`` made with friction pattern ``s``
+        (the sign of the larger end; an interval at rest keeps the previous sign)."""
+        v = self.velocities(u, s)
+        mid = v[:-1] + v[1:]
+        out = np.sign(mid)
+        for k in range(out.size):
+            if out[k] == 0.0:
+                out[k] = out[k - 1] if k else (s[0] if s.size else 1.0)
+        return out
+
+
+def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
+    """A pattern consistent with its own least-peak move (fixed point from ``s0``), solved with sign rows.
+
+    The fixed point moves reversals to where the move made with the previous
+    pattern's friction reverses; without convergence in
+    :data:`PATTERN_ROUNDS` the last pattern is used (the sign rows still make
+    the result consistent).  Both the fixed point and ``s0`` itself are solved
+    with sign rows; the smaller peak wins.
+    """
+    s = np.asarray(s0, float).copy()
+    seen = []
+    for _ in range(PATTERN_ROUNDS):
+        sol = lp.solve(K, s, signs=False)
+        if sol is None:
+            break
+        nxt = lp.pattern_of(sol.u, s)
+        if np.array_equal(nxt, s) or any(np.array_equal(nxt, p) for p in seen):
+            break
+        seen.append(s)
+        s = nxt
+    best = None
+    for cand in (s, np.asarray(s0, float)):
+        if best is not None and np.array_equal(cand, best.pattern):
+            continue
+        sol = lp.solve(K, cand, signs=True)
+        if sol is not None and (best is None or sol.t < best.t):
+            best = sol
+    return best
+
+
+def template_pattern(template, K: int) -> np.ndarray:
+    """``template(tau)`` (velocity sign at normalised time ``tau`` in [0, 1]) on ``K`` intervals."""
+    return np.asarray(template((np.arange(K) + 0.5) / K), float)
+
+
+def fastest_samples(
+    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None
+) -> FrictionSolution | None:
+    """Fewest samples (searched, not proved) with least peak ``<= u_max``; patterns from ``template``.
+
+    One signed LP per probed count with the current pattern (the template,
+    then the last pattern that worked, mapped by normalised time): up
+    geometrically until a count works, down geometrically until one does
+    not, then bisection.  Where the current pattern fails (the first probe,
+    and one count below the count found) the pattern is iterated to
+    consistency (:func:`consistent_pattern`); a better pattern restarts the
+    search down from there (a few rounds).
+    """
+    um = lp.problem.u_max * (1.0 + 1e-12)
+    K_max = K_max if K_max is not None else max(8 * K_guess, K_guess + 200)
+    tried: dict[int, FrictionSolution | None] = {}
+    state = {"template": template}
+
+    def remember(sol: FrictionSolution) -> None:
+        pat = sol.pattern
+        state["template"] = lambda tau, pat=pat: pat[np.minimum((np.asarray(tau) * pat.size).astype(int), pat.size - 1)]
+
+    def feasible(sol: FrictionSolution | None) -> bool:
+        return sol is not None and sol.t <= um
+
+    def ok(K: int) -> bool:
+        if K not in tried:
+            tried[K] = lp.solve(K, template_pattern(state["template"], K))
+            if feasible(tried[K]):
+                remember(tried[K])
+        return feasible(tried[K])
+
+    def fixed_point(K: int) -> bool:
+        sol = consistent_pattern(lp, K, template_pattern(state["template"], K))
+        if not feasible(sol):
+            return False
+        tried[K] = sol
+        remember(sol)
+        return True
+
+    K = max(K_guess, K_min)
+    step = max(1, K // 50)
+    first = True
+    while not ok(K):
+        if first and fixed_point(K):
+            break
+        first = False
+        if K >= K_max:
+            return None
+        K = min(K_max, K + step)
+        step *= 2
+    hi = K
+    for _ in range(3):
+        lo, step = None, max(1, hi // 50)
+        while lo is None:
+            cand = hi - step
+            if cand < K_min:
+                lo = K_min - 1
+            elif ok(cand):
+                hi = cand
+                step *= 2
+            else:
+                lo = cand
+        lo = max([lo] + [k for k in tried if k < hi and not feasible(tried[k])])
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if ok(mid):
+                hi = mid
+            else:
+                lo = mid
+        if hi - 1 < K_min or not fixed_point(hi - 1):
+            break
+        # a better pattern: counts below may work now
+        hi -= 1
+        for k in [k for k in tried if k < hi]:
+            del tried[k]
+    return tried[hi]
