@@ -15,6 +15,7 @@ import argparse
 import numpy as np
 
 from ..core.errors import ModelError
+from ..core.model.measurement import MeasurementKind, MeasurementMap
 from ..core.multi_input.builders import MultiBuiltModel, gantry, multi_chain, multi_two_mass
 from ..core.multi_input.config import MultiPlannerConfig
 from ..core.parameter_file import dump_parameters
@@ -88,6 +89,14 @@ def text(built: MultiBuiltModel, kind: str, rate_hz: float) -> str:
     for key in ("limits.position_min", "limits.position_max", "max_move_duration_s", "max_move_samples"):
         del params[key]
     model = built.model
+    # what the machine's sensors read (the plant's 'measurements' topic): the builder's physical coordinates
+    sensors = MeasurementMap(
+        names=tuple(built.coordinates),
+        map=np.asarray(built.modal_to_physical, float),
+        kinds=(MeasurementKind.POSITION,) * len(built.coordinates),
+        rigid=model.k,
+    )
+    params.update(sensors.to_parameters())
     desc = ", ".join(f"{k}={v}" for k, v in built.parameters.items())
     header = [
         f"flexmotion model {kind}: {desc}",

@@ -77,18 +77,19 @@ class MeasurementPublisher:
     def configure(self, cfg: PlantConfig) -> None:
         """Use ``cfg``'s true model and noise from the next reading on (the noise sequence continues)."""
         self.map = cfg.measurement
-        self._C, self._D = self.map.for_model(cfg.model)
+        # D: one column per input (several drives: a reading of an acceleration feeds every input through)
+        self._C, self._D = self.map.matrices(cfg.model.A(), cfg.model.B())
         self._std = np.asarray(cfg.noise_std, float) if cfg.noise_std else np.zeros(self.map.channels)
         self._names = list(self.map.names)
 
-    def reading(self, x: np.ndarray, u: float) -> np.ndarray:
-        """``C x + D u`` plus one draw of the noise (units of each channel)."""
-        y = self._C @ x + self._D * u
+    def reading(self, x: np.ndarray, u) -> np.ndarray:
+        """``C x + D u`` plus one draw of the noise (units of each channel); ``u``: one value per input."""
+        y = self._C @ x + self._D @ np.atleast_1d(np.asarray(u, float))
         if np.any(self._std > 0.0):
             y = y + self._std * self._rng.standard_normal(y.size)
         return y
 
-    def publish(self, x: np.ndarray, u: float, stamp: Time) -> None:
+    def publish(self, x: np.ndarray, u, stamp: Time) -> None:
         """Publish the reading of state ``x`` just after command ``u`` is applied, stamped ``stamp``."""
         msg = JointState()
         msg.header.stamp = stamp

@@ -176,3 +176,48 @@ def test_the_model_commands_file_feeds_planner_and_plant(ros, tmp_path):
         assert plant.cfg.noise_seed == 4
     planner = ros.planner(**crane_parameters())
     assert planner.get_parameter("measurement.kinds").value[-1] == "acceleration"
+
+
+def test_a_gantry_from_flexmotion_model_measures_its_physical_coordinates(ros, tmp_path):
+    """Several drives: ``flexmotion model gantry`` writes the builder's physical coordinates as measurement.*,
+    and the plant reads trolley, bridge and payload positions, checked against our own exact simulation."""
+    import subprocess
+    import sys
+
+    from scipy.linalg import expm
+    from std_msgs.msg import Float64MultiArray
+
+    from flexmotion_ros.core.multi_input.builders import gantry
+
+    path = tmp_path / "gantry.yaml"
+    argv = ["model", "gantry", "--trolley-mass", "50", "--bridge-mass", "200", "--payload-mass", "100"]
+    argv += ["--rope-length", "3", "--trolley-force", "300", "--bridge-force", "500", "--rate", "100", "-o", str(path)]
+    subprocess.run([sys.executable, "-m", "flexmotion_ros.cli.main", *argv], check=True, capture_output=True)
+    f = tmp_path / "lockstep.yaml"
+    f.write_text(path.read_text() + "    lockstep: true\n")
+    plant = ros.add(
+        PlantNode(context=ros.context, namespace=NAMESPACE, cli_args=["--ros-args", "--params-file", str(f)])
+    )
+    built = gantry(50.0, 200.0, 100.0, 3.0, trolley_force=300.0, bridge_force=500.0)
+    assert plant.cfg.measurement.names == tuple(built.coordinates)
+    rec = Recorder(ros.probe)
+    wait_for(lambda: plant._measure.subscription_count() >= 1, 10.0, "the measurements subscription")
+    wait_for(lambda: ros.probe.command_pub.get_subscription_count() >= 1, 10.0, "commands")
+    u = np.array([[300.0, -500.0], [-300.0, 250.0], [0.0, 0.0]])
+    for row in u:
+        ros.probe.command_pub.publish(Float64MultiArray(data=[float(v) for v in row]))
+    wait_for(lambda: len(rec.msgs) >= 3, 10.0, "3 readings")
+    names, y, _ = rec.readings()
+    assert names == list(built.coordinates)  # trolley_x, payload_x, bridge_y, payload_y
+    A, B = built.model.A(), built.model.B()
+    n, m = B.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n], aug[:n, n:] = A, B
+    E = expm(aug * plant.cfg.dt)  # our own zero-order-hold step: [[Phi, Gamma], [0, I]]
+    x = [np.zeros(n)]
+    for row in u:
+        x.append(E[:n, :n] @ x[-1] + E[:n, n:] @ row)
+    x = np.array(x)
+    expected = built.physical_positions(x[:3])  # the reading y_k of the state x_k the command u_k meets
+    np.testing.assert_allclose(y[:3], expected, rtol=0, atol=1e-12)
+    assert np.all(np.abs(expected[1:, [0, 2]]) > 1e-5)  # the readings moved: the check is not of zeros
