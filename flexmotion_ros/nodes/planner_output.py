@@ -29,9 +29,8 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
-from ..core.errors import ConfigError
 from ..core.model.modal_model import ModalModel
-from ..core.multi_input.dispatch import AnyConfig, n_inputs
+from ..core.multi_input.dispatch import AnyConfig, check_single_input_features, n_inputs
 from ..execution.command_stream import CommandStream
 from ..execution.output import OutputMode, OutputSettings, OutputStream, forward_hold, output_settings
 from ..execution.trajectory import NS, JointTrajectory
@@ -39,7 +38,6 @@ from . import messages
 from .trajectory_messages import trajectory_msg
 
 #: Parameters that several inputs take at their default only (name, the default).
-SINGLE_INPUT_ONLY = (("output", "stream"), ("command_interface", "effort"))
 
 #: The trajectory topic: reliable, keep last 10 (a joint_trajectory_controller's subscription matches it).
 TRAJECTORY_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -55,22 +53,7 @@ def check_output(values: dict[str, Any], config: AnyConfig) -> OutputSettings:
     """
     if isinstance(config.model, ModalModel):
         return output_settings(values, config.model)
-    m = n_inputs(config)
-    for name, default in SINGLE_INPUT_ONLY:
-        given = values.get(name, default)
-        if given != default:
-            raise ConfigError(
-                name,
-                f"is one-input only for now, got {given!r} with {m} inputs (model.inputs): use {default!r} "
-                "(a force stream on 'commands')",
-            )
-    period = values.get("feedback.replan_period_s", 0.0)
-    if isinstance(period, (int, float)) and period > 0.0:
-        raise ConfigError(
-            "feedback.replan_period_s",
-            f"closed-loop replanning is one-input only for now, got {period} s with {m} inputs (model.inputs): "
-            "set it to 0.0",
-        )
+    check_single_input_features(config, values)  # the verdict flexmotion plan gives on the same file
     return OutputSettings()
 
 
@@ -160,4 +143,4 @@ class OutputGlue:
         return out
 
 
-__all__ = ["SINGLE_INPUT_ONLY", "TRAJECTORY_QOS", "OutputGlue", "check_output"]
+__all__ = ["TRAJECTORY_QOS", "OutputGlue", "check_output"]

@@ -138,6 +138,15 @@ BAD_FILES = [
     ("sync: time", "sync: tme", ["sync: must be one of ['time', 'none', 'phase']"]),
     ("method: time_optimal", "method: robust_time_optimal", ["robust_time_optimal is not available for multi-input"]),
     ("rigid_bodies: [x, 'y']", "rigid_bodies: [x, y]", ["model.rigid_bodies", "quote a name such as 'y'"]),
+    # the planner node's one-input features: the node's verdict (test_multi_axis) on the same file
+    ("sync: time", "sync: time\n    output: trajectory", ["output: is one-input only for now, got 'trajectory'"]),
+    ("sync: time", "sync: time\n    command_interface: velocity", ["command_interface: is one-input only for now"]),
+    ("sync: time", "sync: time\n    output: stream", []),  # the force stream: accepted
+    (
+        "sync: time",
+        "sync: time\n    feedback:\n      replan_period_s: 0.1",
+        ["feedback.replan_period_s: closed-loop replanning is one-input only"],
+    ),
 ]
 
 

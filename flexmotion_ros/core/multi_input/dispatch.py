@@ -77,6 +77,7 @@ def config_from_any(params: Mapping[str, Any]) -> AnyConfig:
     if is_multi(params):
         config = multi_config_from_parameters(params)
         check_joint_names(config, params.get("joint_names"))  # a node parameter: the same verdict here
+        check_single_input_features(config, params)  # node parameters too
         return config
     for name in LIST_FOR_MULTI:
         if isinstance(params.get(name), (list, tuple)) and params.get(name):
@@ -91,6 +92,42 @@ def config_from_any(params: Mapping[str, Any]) -> AnyConfig:
     config = config_from_parameters(params)
     check_joint_names(config, params.get("joint_names"))
     return config
+
+
+#: Planner features for one input only (issue 14), with the value a several-input planner takes.
+SINGLE_INPUT_ONLY: tuple[tuple[str, str], ...] = (("output", "stream"), ("command_interface", "effort"))
+
+
+def check_single_input_features(config: AnyConfig, params: Mapping[str, Any]) -> None:
+    """Refuse, for several inputs, the planner's one-input features (the node and ``flexmotion plan`` alike).
+
+    Several inputs stream forces on ``commands`` only: ``output: trajectory``,
+    a velocity / position ``command_interface`` and closed-loop replanning
+    (``feedback.replan_period_s``) are one-input features for now.
+
+    Raises
+    ------
+    ConfigError
+        Naming the parameter.
+    """
+    if not isinstance(config, MultiPlannerConfig):
+        return
+    m = config.model.m
+    for name, default in SINGLE_INPUT_ONLY:
+        given = params.get(name)
+        if given is not None and given != default:
+            raise ConfigError(
+                name,
+                f"is one-input only for now, got {given!r} with {m} inputs (model.inputs): use {default!r} "
+                "(a force stream on 'commands')",
+            )
+    period = params.get("feedback.replan_period_s")
+    if isinstance(period, (int, float)) and not isinstance(period, bool) and period > 0.0:
+        raise ConfigError(
+            "feedback.replan_period_s",
+            f"closed-loop replanning is one-input only for now, got {period} s with {m} inputs (model.inputs): "
+            "set it to 0.0",
+        )
 
 
 def check_joint_names(config: AnyConfig, names) -> tuple[str, ...]:
@@ -275,7 +312,9 @@ __all__ = [
     "body_positions",
     "bounds_text",
     "check_budgets",
+    "SINGLE_INPUT_ONLY",
     "check_joint_names",
+    "check_single_input_features",
     "config_from_any",
     "finite_or_keep",
     "is_multi",
