@@ -34,7 +34,7 @@ from ..simulation.error_scale import state_scale
 from ..simulation.modal_kernel import ModalKernel
 from ..tolerances import POLISH_TOL
 from .reachable_set import bracketed_step
-from .switch_newton import DENSE_UP_TO
+from .switch_newton import DENSE_UP_TO, damped_step
 
 #: A local minimum of ``|S|`` below this fraction of its maximum is a near-zero
 #: (the value of ``structure_guess.NEAR_ZERO``; not imported from there so that
@@ -274,20 +274,10 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
             step = np.linalg.lstsq(J, -r, rcond=None)[0]
         if max(float(np.max(np.abs(step[:L]), initial=0.0)), abs(float(step[-1]))) <= 4.0 * eps * T:
             break
-        t = 1.0
-        for _ in range(12 if rn > POLISH_TOL else 1):
-            tau_c = tau + t * step[:L]
-            T_c = T + t * float(step[-1])
-            nu_c = nuh + t * step[L : L + n]
-            if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
-                r_c, g_c, kv_c = residual(tau_c, nu_c, T_c)
-                rn_c = float(np.max(np.abs(r_c)))
-                if rn_c < rn:
-                    break
-            t *= 0.5
-        else:
+        accepted = damped_step(tau, nuh, T, step, rn, residual)
+        if accepted is None:
             break
-        tau, nuh, T, r, g, kv, rn = tau_c, nu_c, T_c, r_c, g_c, kv_c, rn_c
+        tau, nuh, T, r, g, kv, rn = accepted
     if L:  # nu and -nu both vanish at the switches: take the one whose signs match
         first = lm.response.switching(nuh / s, np.array([0.5 * tau[0]]))[0]
         if np.sign(first) != sign0:

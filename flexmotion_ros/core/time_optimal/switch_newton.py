@@ -64,26 +64,37 @@ def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarr
         step = _newton_step(g * jump[:, None], fT, dS * gscale, g * gscale, anchor, r, n, L)
         if np.max(np.abs(np.append(step[:L], step[-1]))) <= 4.0 * np.finfo(float).eps * T:
             break  # converged: the step is below rounding of the times
-        t = 1.0
-        # converged to within POLISH_TOL: one more full step if it helps, no line search
-        for _ in range(12 if rn > POLISH_TOL else 1):
-            tau_c = tau + t * step[:L]
-            T_c = T + t * step[-1]
-            nu_c = nuh + t * step[L : L + n]
-            if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
-                r_c, g_c, eAx_c = residual(tau_c, nu_c, T_c)
-                rn_c = float(np.max(np.abs(r_c)))
-                if rn_c < rn:
-                    break
-            t *= 0.5
-        else:
+        accepted = damped_step(tau, nuh, T, step, rn, residual)
+        if accepted is None:
             break
-        tau, nuh, T, r, g, eAx, rn = tau_c, nu_c, T_c, r_c, g_c, eAx_c, rn_c
+        tau, nuh, T, r, g, eAx, rn = accepted
     if L:  # nu and -nu both vanish at the switches: take the one whose signs match
         first = 0.5 * tau[0]
         if np.sign(sys.switching(nuh / s, np.array([first]))[0]) != sign0:
             nuh = -nuh
     return rn <= POLISH_TOL, tau, nuh, T, rn
+
+
+def damped_step(tau: np.ndarray, nuh: np.ndarray, T: float, step: np.ndarray, rn: float, residual) -> tuple | None:
+    """The Newton ``step`` on (switch times ``tau``, co-state ``nuh``, ``T``), halved until the residual drops.
+
+    A candidate must keep ``0 < tau_1 < ... < tau_L < T``; ``residual(tau, nu, T)`` returns ``(r, g, extra)``.
+    Converged to within ``POLISH_TOL``: one more full step if it helps, no line search.  Returns
+    ``(tau, nu, T, r, g, extra, |r|_inf)`` of the accepted point, or None if no halving improves on ``rn``.
+    """
+    L, n = tau.size, nuh.size
+    t = 1.0
+    for _ in range(12 if rn > POLISH_TOL else 1):
+        tau_c = tau + t * step[:L]
+        T_c = T + t * float(step[-1])
+        nu_c = nuh + t * step[L : L + n]
+        if T_c > 0.0 and (L == 0 or (tau_c[0] > 0.0 and tau_c[-1] < T_c and np.all(np.diff(tau_c) > 0.0))):
+            r_c, g_c, extra_c = residual(tau_c, nu_c, T_c)
+            rn_c = float(np.max(np.abs(r_c)))
+            if rn_c < rn:
+                return tau_c, nu_c, T_c, r_c, g_c, extra_c, rn_c
+        t *= 0.5
+    return None
 
 
 def _newton_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
