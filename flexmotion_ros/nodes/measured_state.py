@@ -15,20 +15,18 @@ lockstep plant (:mod:`.plant_node`); only the latest message matters.
 
 from __future__ import annotations
 
-import threading
-
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from ..execution.measured_state import MeasuredState
+from .side_subscription import SideSubscription
 
 #: Best effort, keep last 10: matches reliable and best-effort publishers alike.
 STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
 
 
-class StateListener:
+class StateListener(SideSubscription):
     """Subscribe to ``topic`` (resolved by ``owner``) and keep the latest state in :attr:`store`.
 
     Parameters
@@ -41,38 +39,14 @@ class StateListener:
 
     def __init__(self, owner: Node, topic: str) -> None:
         self.store = MeasuredState()
-        self.topic = owner.resolve_topic_name(topic)
-        self._node = Node(
-            f"{owner.get_name()}_state",
-            namespace=owner.get_namespace(),
-            context=owner.context,
-            use_global_arguments=False,
-            start_parameter_services=False,
-        )
-        self._node.create_subscription(JointState, self.topic, self._on_state, STATE_QOS)
-        self._executor = SingleThreadedExecutor(context=owner.context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="flexmotion-state", daemon=True)
-        self._thread.start()
+        super().__init__(owner, "state", topic, STATE_QOS)
 
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:  # noqa: BLE001 -- context shut down under us: nothing more to receive
-            pass
-
-    def _on_state(self, msg: JointState) -> None:
+    def _on(self, msg: JointState) -> None:
         self.store.update(msg.name, msg.position, msg.velocity)
 
     def publisher_count(self) -> int:
-        """Publishers matched on the state topic."""
+        """Publishers on the state topic (the graph's count: also those the subscription has not matched yet)."""
         return self._node.count_publishers(self.topic)
-
-    def close(self) -> None:
-        """Stop the executor thread and destroy the internal node."""
-        self._executor.shutdown(timeout_sec=1.0)
-        self._thread.join(timeout=2.0)
-        self._node.destroy_node()
 
 
 __all__ = ["STATE_QOS", "StateListener"]

@@ -12,17 +12,15 @@ every sample.
 
 from __future__ import annotations
 
-import threading
-
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from ..execution.records import SignalLog
 from .plant_measurements import MEASUREMENT_QOS, TOPIC
+from .side_subscription import SideSubscription
 
 
-class MeasurementListener:
+class MeasurementListener(SideSubscription):
     """``measurements`` on an internal node and executor of its own; each reading goes into ``log``.
 
     Parameters
@@ -39,25 +37,7 @@ class MeasurementListener:
         self.log = log
         self.names = tuple(names)
         self.mismatched = 0  # messages whose names are not measurement.names
-        self.topic = owner.resolve_topic_name(TOPIC)
-        self._node = Node(
-            f"{owner.get_name()}_measurements",
-            namespace=owner.get_namespace(),
-            context=owner.context,
-            use_global_arguments=False,
-            start_parameter_services=False,
-        )
-        self._sub = self._node.create_subscription(JointState, self.topic, self._on, MEASUREMENT_QOS)
-        self._executor = SingleThreadedExecutor(context=owner.context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="flexmotion-measurements", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:  # noqa: BLE001 -- context shut down under us: nothing more to receive
-            pass
+        super().__init__(owner, "measurements", TOPIC, MEASUREMENT_QOS)
 
     def _on(self, msg: JointState) -> None:
         names = tuple(msg.name)
@@ -70,15 +50,6 @@ class MeasurementListener:
                 return
             values = [msg.position[index[n]] for n in self.names]
         self.log.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, values)
-
-    def publisher_count(self) -> int:
-        """Publishers matched with this subscription of ``measurements``."""
-        return self._sub.get_publisher_count()
-
-    def close(self) -> None:
-        self._executor.shutdown(timeout_sec=1.0)
-        self._thread.join(timeout=2.0)
-        self._node.destroy_node()
 
 
 __all__ = ["MeasurementListener"]
