@@ -17,6 +17,7 @@ import atexit
 import fcntl
 import os
 import random
+import sys
 import tempfile
 import threading
 import time
@@ -281,11 +282,13 @@ class Ros:
         self._closing = True
         for executor in self.executors:
             executor.shutdown(timeout_sec=2.0)
-        hung = []
+        hung, stacks = [], []
         for thread in self._threads:
             thread.join(timeout=10.0)
             if thread.is_alive():
                 hung.append(thread.name)
+                frame = sys._current_frames().get(thread.ident)  # noqa: SLF001 -- where it hangs, for the report
+                stacks.append("".join(traceback.format_stack(frame)) if frame is not None else "(no frame)")
         for node in self.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=self.context)
@@ -297,7 +300,9 @@ class Ros:
                 f"ROS teardown: DDS participant(s) {leaked} still alive after every node was destroyed"
             )
         if hung or self.errors:
-            raise AssertionError(f"ROS teardown: callbacks still running in {hung}; executor errors: {self.errors}")
+            raise AssertionError(
+                f"ROS teardown: callbacks still running in {hung}; executor errors: {self.errors}\n" + "\n".join(stacks)
+            )
 
 
 #: The harness of the running test (wait_for reports its executor errors at once).
