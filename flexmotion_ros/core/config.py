@@ -135,20 +135,9 @@ class PlannerConfig:
             raise ConfigError("limits.position_min/position_max", f"need position_min < position_max, got [{lo}, {hi}]")
         object.__setattr__(self, "position_min", lo)
         object.__setattr__(self, "position_max", hi)
-        budget = self.max_move_duration_s
-        try:
-            budget = float(budget)
-        except (TypeError, ValueError):
-            budget = math.nan
-        if not (math.isfinite(budget) and budget > 0.0):
-            raise ConfigError(
-                "max_move_duration_s", f"must be a finite duration > 0 s, got {self.max_move_duration_s!r}"
-            )
-        object.__setattr__(self, "max_move_duration_s", budget)
-        samples = self.max_move_samples
-        if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-            raise ConfigError("max_move_samples", f"must be an integer >= 1, got {samples!r}")
-        object.__setattr__(self, "max_move_samples", int(samples))
+        duration, samples = check_budget_fields(self.max_move_duration_s, self.max_move_samples)
+        object.__setattr__(self, "max_move_duration_s", duration)
+        object.__setattr__(self, "max_move_samples", samples)
         check_required_options(self.method, self.options)
 
     def check_goal(self, target: float) -> float:
@@ -271,16 +260,44 @@ def check_move_samples(config: PlannerConfig, problem: MoveProblem, rate_hz: flo
     GoalError
         Naming ``goal`` and the budget ``max_move_samples``.
     """
-    rate = float(rate_hz) if rate_hz else config.rate_hz
     T = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
-    samples = T * rate
-    if not samples <= config.max_move_samples:
+    return check_sample_budget(T, float(rate_hz) if rate_hz else config.rate_hz, config.max_move_samples)
+
+
+def check_sample_budget(T: float, rate_hz: float, max_move_samples: int) -> int:
+    """``ceil(T rate_hz)``, refused (GoalError naming ``goal``) over ``max_move_samples``; one input or several.
+
+    ``T`` (s) is a rigid-body lower bound on the move's duration, so only moves that certainly exceed the
+    budget are refused.
+    """
+    samples = T * rate_hz
+    if not samples <= max_move_samples:
         raise GoalError(
             "goal",
-            f"the move needs at least {samples:.4g} samples at {rate:g} Hz ({T:.4g} s, rigid-body minimum time), "
-            f"over the budget max_move_samples = {config.max_move_samples}; move less far or raise max_move_samples",
+            f"the move needs at least {samples:.4g} samples at {rate_hz:g} Hz ({T:.4g} s, rigid-body minimum time), "
+            f"over the budget max_move_samples = {max_move_samples}; move less far or raise max_move_samples",
         )
     return math.ceil(samples)
+
+
+def check_budget_fields(max_move_duration_s: Any, max_move_samples: Any) -> tuple[float, int]:
+    """The two move budgets of a configuration, validated: ``(max_move_duration_s, max_move_samples)``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the budget: a duration that is not finite and > 0 s, a sample count that is not an integer >= 1.
+    """
+    try:
+        duration = float(max_move_duration_s)
+    except (TypeError, ValueError):
+        duration = math.nan
+    if not (math.isfinite(duration) and duration > 0.0):
+        raise ConfigError("max_move_duration_s", f"must be a finite duration > 0 s, got {max_move_duration_s!r}")
+    samples = max_move_samples
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise ConfigError("max_move_samples", f"must be an integer >= 1, got {samples!r}")
+    return duration, int(samples)
 
 
 def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
@@ -357,7 +374,9 @@ __all__ = [
     "NOT_OPTION_PREFIXES",
     "PlannerConfig",
     "check_move_samples",
+    "check_budget_fields",
     "check_rate_hz",
+    "check_sample_budget",
     "check_sampling",
     "config_from_parameters",
     "dump_parameters",

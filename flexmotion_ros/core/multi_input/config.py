@@ -34,7 +34,15 @@ from typing import Any
 
 import numpy as np
 
-from ..config import DEFAULTS, NOT_OPTION_PREFIXES, NOT_OPTIONS, check_rate_hz, check_sampling
+from ..config import (
+    DEFAULTS,
+    NOT_OPTION_PREFIXES,
+    NOT_OPTIONS,
+    check_budget_fields,
+    check_rate_hz,
+    check_sample_budget,
+    check_sampling,
+)
 from ..errors import ConfigError, GoalError
 from ..model.modal_model import ModalModel
 from ..parameters import MAX_MOVE_DURATION_S, MAX_MOVE_SAMPLES, check_required_options
@@ -100,16 +108,9 @@ class MultiPlannerConfig:
             raise ConfigError("limits.position_min/position_max", f"need position_min < position_max, got [{lo}, {hi}]")
         object.__setattr__(self, "position_min", lo)
         object.__setattr__(self, "position_max", hi)
-        budget = _float_or_nan(self.max_move_duration_s)
-        if not (math.isfinite(budget) and budget > 0.0):
-            raise ConfigError(
-                "max_move_duration_s", f"must be a finite duration > 0 s, got {self.max_move_duration_s!r}"
-            )
-        object.__setattr__(self, "max_move_duration_s", budget)
-        samples = self.max_move_samples
-        if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-            raise ConfigError("max_move_samples", f"must be an integer >= 1, got {samples!r}")
-        object.__setattr__(self, "max_move_samples", int(samples))
+        duration, samples = check_budget_fields(self.max_move_duration_s, self.max_move_samples)
+        object.__setattr__(self, "max_move_duration_s", duration)
+        object.__setattr__(self, "max_move_samples", samples)
         check_required_options(self.method, self.options)
 
     # ------------------------------------------------------------------ sizes
@@ -176,13 +177,6 @@ class MultiPlannerConfig:
             p["fuel_weights"] = [float(v) for v in self.fuel_weights]
         p.update(self.options)
         return p
-
-
-def _float_or_nan(value: Any) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _set(value: Any) -> bool:
@@ -272,15 +266,7 @@ def check_multi_move_budget(config: MultiPlannerConfig, problem: MultiMoveProble
             f"the move needs at least {T:.4g} s (rigid-body minimum time), over the budget max_move_duration_s = "
             f"{config.max_move_duration_s:g} s; move less far or raise max_move_duration_s",
         )
-    rate = float(rate_hz) if rate_hz else config.rate_hz
-    samples = T * rate
-    if not samples <= config.max_move_samples:
-        raise GoalError(
-            "goal",
-            f"the move needs at least {samples:.4g} samples at {rate:g} Hz ({T:.4g} s, rigid-body minimum time), "
-            f"over the budget max_move_samples = {config.max_move_samples}; move less far or raise max_move_samples",
-        )
-    return math.ceil(samples)
+    return check_sample_budget(T, float(rate_hz) if rate_hz else config.rate_hz, config.max_move_samples)
 
 
 __all__ = [
