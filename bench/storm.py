@@ -60,9 +60,12 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+from deadline_probe import overlapping_gaps, steal_ticks  # noqa: E402 -- beside this script
+
 RATE_HZ = 200.0
 LIMIT = 3.0
-PARAMS = f"""/**:
+PARAMS = """/**:
   ros__parameters:
     model:
       b0: 1.0
@@ -71,10 +74,10 @@ PARAMS = f"""/**:
       zeta: [0.01, 0.02]
       b: [1.0, -0.7]
     u_max: 10.0
-    rate_hz: {RATE_HZ!r}
+    rate_hz: {rate!r}
     limits:
-      position_min: {-LIMIT!r}
-      position_max: {LIMIT!r}
+      position_min: {low!r}
+      position_max: {high!r}
 """
 #: An answer or a log line naming an internal failure (a Python exception type, a traceback, "unexpected").
 INTERNAL = re.compile(r"Traceback|unexpected|\b[A-Z][A-Za-z]*(Error|Exception)\b")
@@ -90,9 +93,24 @@ def _args() -> argparse.Namespace:
     p.add_argument(
         "--no-settle", action="store_true", help="never wait for a move to start or settle (fast: for memory)"
     )
+    p.add_argument("--rate", type=float, default=RATE_HZ, help="command rate (Hz)")
+    p.add_argument(
+        "--no-probe",
+        action="store_true",
+        help="do not run the bare deadline loop (bench/deadline_probe.py) beside the nodes",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object per mode")
     p.add_argument("-p", dest="planner_params", action="append", default=[], help="planner parameter NAME:=VALUE")
     return p.parse_args()
+
+
+def stream_priority(args: argparse.Namespace) -> int:
+    """The planner's ``stream_priority`` among the ``-p`` parameters (0 when not set)."""
+    for item in args.planner_params:
+        name, _, value = item.partition(":=")
+        if name.strip() == "stream_priority":
+            return int(float(value))
+    return 0
 
 
 def rss_mb(pid: int) -> float:
@@ -219,13 +237,22 @@ def run_mode(args, mode: str) -> dict:
     ns = f"/storm_{os.getpid()}_{mode}"
     tmp = Path(tempfile.mkdtemp(prefix="flexmotion_storm_"))
     params = tmp / "storm.yaml"
-    params.write_text(PARAMS)
+    params.write_text(PARAMS.format(rate=float(args.rate), low=-LIMIT, high=LIMIT))
     planner_log, plant_log = tmp / "planner.log", tmp / "plant.log"
     lockstep = mode == "lockstep"
     plant = start_node("plant_node", ns, params, [f"lockstep:={'true' if lockstep else 'false'}"], plant_log)
     planner = start_node("planner_node", ns, params, list(args.planner_params), planner_log)
     storm = Storm(ns)
-    out: dict = {"mode": mode, "requests": args.requests, "seed": args.seed}
+    probe_out = tmp / "probe.npy"
+    probe = None
+    if not args.no_probe:
+        probe = subprocess.Popen(
+            [sys.executable, str(ROOT / "bench" / "deadline_probe.py"), "--rate", repr(float(args.rate))]
+            + ["--seconds", repr(args.max_seconds + 120.0), "--priority", str(stream_priority(args)), "--out"]
+            + [str(probe_out)]
+        )
+    steal0 = steal_ticks()
+    out: dict = {"mode": mode, "requests": args.requests, "seed": args.seed, "rate_hz": float(args.rate)}
     stops: list[dict] = []
     invalid = {"sent": 0, "refused_answers": 0, "unrefused": []}
     topic_invalid = 0
@@ -427,6 +454,10 @@ def run_mode(args, mode: str) -> dict:
                 p.kill()
                 status[name] = "killed"
         storm.close()
+        if probe is not None:
+            probe.send_signal(signal.SIGINT)
+            probe.wait(timeout=10.0)
+    steal_s = (steal_ticks() - steal0) / os.sysconf("SC_CLK_TCK")
     duration = time.monotonic() - t_start
     log = planner_log.read_text()
     internal_log = [line for line in log.splitlines() if INTERNAL.search(line)]
@@ -437,6 +468,13 @@ def run_mode(args, mode: str) -> dict:
         t = np.array(storm.send_ns, dtype=np.int64)
         last = storm.values[-1] if storm.values else math.nan
     gaps_ms = np.diff(t) * 1e-6 if t.size > 1 else np.array([0.0])
+    two_periods_ns = int(2e9 / args.rate)
+    probe_ns = np.load(probe_out) if probe is not None and probe_out.exists() else np.zeros(0, dtype=np.int64)
+    if probe_ns.size > 1 and t.size > 1:
+        # the probe ran from before the first command to after the last: compare over the stream's span only
+        probe_ns = probe_ns[(probe_ns >= t[0]) & (probe_ns <= t[-1])]
+    _, shared = overlapping_gaps(t, probe_ns, two_periods_ns) if t.size > 1 else (None, np.zeros(0, bool))
+    probe_gaps_ms = np.diff(probe_ns) * 1e-6 if probe_ns.size > 1 else np.array([0.0])
     mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
     out.update(
         sent=sent,
@@ -467,8 +505,13 @@ def run_mode(args, mode: str) -> dict:
         late_stop_texts=[s["text"] for s in mid_stops if not s["replanned"] and s["after"] > s["lead"] * s["leads"]],
         commands=int(t.size),
         gap_max_ms=float(gaps_ms.max()),
-        gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / RATE_HZ)),
-        gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / RATE_HZ)[:40]],
+        gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / args.rate)),
+        gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / args.rate)[:40]],
+        gaps_shared_with_probe=int(shared.sum()),
+        probe_wakes=int(probe_ns.size),
+        probe_gaps_over_two_periods=int(np.sum(probe_gaps_ms > 2e3 / args.rate)),
+        probe_gap_max_ms=float(probe_gaps_ms.max()),
+        steal_s=steal_s,
         gap_p999_ms=float(np.percentile(gaps_ms, 99.9)),
         settled_checked=len(settled),
         settled_ok=int(sum(e <= 1e-9 for e in settled)),
@@ -497,7 +540,7 @@ def main() -> None:
         return
     load = os.getloadavg()
     print(
-        f"storm: {args.requests} requests per mode, seed {args.seed}, {RATE_HZ:g} Hz two-mode machine, planner and "
+        f"storm: {args.requests} requests per mode, seed {args.seed}, {args.rate:g} Hz two-mode machine, planner and "
         f"plant as processes; load average {load[0]:.1f} on {os.cpu_count()} CPUs"
     )
     for r in results:
@@ -521,9 +564,16 @@ def main() -> None:
         )
         print(
             f"  stream                       {r['commands']} commands; gap max {r['gap_max_ms']:.1f} ms "
-            f"(p99.9 {r['gap_p999_ms']:.2f} ms); gaps over two periods ({2e3 / RATE_HZ:.0f} ms): "
+            f"(p99.9 {r['gap_p999_ms']:.2f} ms); gaps over two periods ({2e3 / args.rate:g} ms): "
             f"{r['gaps_over_two_periods']}; last command {r['last_command']}"
         )
+        if r["probe_wakes"]:
+            print(
+                f"  bare deadline loop beside it {r['probe_wakes']} wake-ups; gap max {r['probe_gap_max_ms']:.1f} ms; "
+                f"gaps over two periods: {r['probe_gaps_over_two_periods']}; "
+                f"stream gaps overlapping one of them: {r['gaps_shared_with_probe']} of {r['gaps_over_two_periods']}; "
+                f"CPU stolen by the hypervisor meanwhile: {r['steal_s']:.2f} s"
+            )
         if r["mode"] == "lockstep":
             print(
                 f"  settled moves at rest        {r['settled_ok']}/{r['settled_checked']} at the target, at rest "

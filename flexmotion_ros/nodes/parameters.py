@@ -240,8 +240,10 @@ def planner_specs() -> list[Spec]:
         Spec(
             "stream_priority",
             0,
-            "1..99: run the command stream thread under SCHED_FIFO at this priority (Linux, needs CAP_SYS_NICE or an "
-            "rtprio limit; refused: a warning and normal scheduling); 0: normal scheduling. Fixed at start-up.",
+            "1..99: run the command stream thread under SCHED_FIFO at this priority, and the node's other threads "
+            "(which share its interpreter lock) one step below while planning runs in child processes (Linux, needs "
+            "CAP_SYS_NICE or an rtprio limit; refused: a warning and normal scheduling); 0: normal scheduling. Fixed "
+            "at start-up.",
             read_only=True,
             int_range=(0, 99),
         ),

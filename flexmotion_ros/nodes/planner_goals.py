@@ -43,6 +43,7 @@ from ..execution import (
     splice_point,
 )
 from ..execution.measured_state import AT_REST_TOL, EarlyArrival
+from ..execution.realtime import lower_threads
 from ..execution.requests import Request, RequestKind
 from . import messages, multi_axis
 
@@ -312,6 +313,7 @@ class GoalHandling:
         if child.dead:
             self.get_logger().error(f"planning process {child.name} is gone: planning in-process from now on")
             self._children = None
+            lower_threads(keep_fifo=("flexmotion-stream",))  # planning here must not run under SCHED_FIFO
             return _plan_here
         return child
 

@@ -56,6 +56,7 @@ from ..execution.learning import (
     model_update,
     summary,
 )
+from ..execution.realtime import normal_scheduling
 from ..execution.records import RECORD_CAPACITY_S, SignalLog, paired_record
 from ..execution.timeline import Segment
 from .measurement_listener import MeasurementListener
@@ -180,6 +181,7 @@ class IdentifyHandling:
         done: Future = Future()
 
         def work() -> None:
+            normal_scheduling()  # created by an executor callback (SCHED_FIFO under stream_priority): it computes
             try:
                 out = self.identify_now()
             except Exception as exc:  # noqa: BLE001 -- identify_now refuses instead of raising; never unanswered

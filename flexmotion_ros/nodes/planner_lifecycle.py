@@ -17,6 +17,10 @@ from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
 
 from ..core.errors import FlexmotionError
 from ..execution.command_stream import StreamHalt
+from ..execution.realtime import lower_threads, raise_threads
+
+#: Python threads of the node that compute in-process: they keep normal scheduling.
+NUMERIC_THREADS = ("flexmotion-learn", "flexmotion-identify")
 
 
 class LifecycleTransitions:
@@ -47,6 +51,7 @@ class LifecycleTransitions:
         ret = super().on_activate(state)
         if ret != TransitionCallbackReturn.SUCCESS:
             return ret
+        self._raise_lock_sharers()
         self.stream.start()
         if self.stream.priority_error:
             self.get_logger().warning(self.stream.priority_error)
@@ -57,11 +62,40 @@ class LifecycleTransitions:
         self.publish_diagnostics()
         return TransitionCallbackReturn.SUCCESS
 
+    def _raise_lock_sharers(self) -> None:
+        """With ``stream_priority`` p and planning in child processes: the node's other threads to SCHED_FIFO p-1.
+
+        They share the interpreter lock with the stream; under normal scheduling any process could preempt
+        one while it holds the lock (:mod:`~flexmotion_ros.execution.realtime`).  All threads of the process:
+        ``ros2 run`` runs one node per process.  Deactivation lowers them again.  Threads that compute
+        (identification, learning) stay under normal scheduling; planning happens in the children.
+        """
+        priority = self.stream.priority
+        self._lock_sharers_raised = False
+        if priority <= 0 or self._children is None:
+            return
+        error = raise_threads(max(1, priority - 1), keep_normal=NUMERIC_THREADS)
+        if error:
+            self.get_logger().warning(error)
+            return
+        # a thread waiting for the lock asks its holder to drop it after the switch interval (5 ms by default):
+        # a quarter of a period keeps a busy holder from costing the stream a sample
+        switch_s = min(sys.getswitchinterval(), 0.25 / self._config.rate_hz)
+        sys.setswitchinterval(switch_s)
+        self._lock_sharers_raised = True
+        self.get_logger().info(
+            f"threads sharing the interpreter lock with the stream: SCHED_FIFO {max(1, priority - 1)}; "
+            f"lock switch interval {switch_s * 1e3:.2g} ms"
+        )
+
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Cut a move off with the hold, stop streaming; then disable ``commands``."""
         self._lifecycle = "inactive"  # goals are refused from now on
         self._worker.cancel("the planner was deactivated")
         self._end_stream("deactivated")
+        if self._lock_sharers_raised:  # no stream, no reason to outrank the machine's other processes
+            lower_threads()
+            self._lock_sharers_raised = False
         self._status.set_lifecycle("inactive")
         self.publish_diagnostics()
         return super().on_deactivate(state)

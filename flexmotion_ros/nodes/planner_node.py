@@ -197,6 +197,7 @@ class PlannerNode(
     ) -> None:
         super().__init__(NODE_NAME, **node_kwargs)
         self._children = planning
+        self._lock_sharers_raised = False  # the other threads under SCHED_FIFO (stream_priority, planning children)
         self._lifecycle = "unconfigured"  # unconfigured / inactive / active / finalized
         self._configure_error: BaseException | None = None
         self._configured_entities: list[tuple[str, Any]] = []
