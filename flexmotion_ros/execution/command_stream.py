@@ -181,6 +181,10 @@ class CommandStream:
         normally and :attr:`priority_error` says why.
     sleep : callable
         ``sleep(seconds)`` on the same time base as ``clock``.
+    after_sample : callable, optional
+        ``f(slack)`` after each sample, with the time left until the next
+        deadline (s): work that must not delay a sample (e.g.
+        :class:`~.realtime.SlackCollector`).  Called from the stream thread.
     """
 
     def __init__(
@@ -195,6 +199,7 @@ class CommandStream:
         priority: int = 0,
         sleep: Callable[[float], None] = time.sleep,
         on_fault: Callable[[StreamHalt], None] | None = None,
+        after_sample: Callable[[float], None] | None = None,
     ) -> None:
         self.dt = 1.0 / float(rate_hz)
         self._publish = publish
@@ -202,6 +207,7 @@ class CommandStream:
         self._on_start = on_start
         self._on_finish = on_finish
         self._on_fault = on_fault
+        self._after_sample = after_sample
         self._clock = clock
         self._sleep = sleep
         self._cond = threading.Condition()
@@ -476,6 +482,8 @@ class CommandStream:
                 self._on_start(started)
         if finished is not None and self._on_finish is not None:
             self._on_finish(finished)
+        if self._after_sample is not None:
+            self._after_sample(deadline + self.dt - self._clock())
         return StreamStep(sample=k, deadline=deadline, time=now, value=value)
 
     def _sleeping(self) -> bool:

@@ -74,6 +74,7 @@ class LifecycleTransitions:
         self._lock_sharers_raised = False
         if priority <= 0 or self._children is None:
             return
+        self._collector.enable()  # a collection holds the lock as well: collections in the stream's slack
         error = raise_threads(max(1, priority - 1), keep_normal=NUMERIC_THREADS)
         if error:
             self.get_logger().warning(error)
@@ -85,7 +86,7 @@ class LifecycleTransitions:
         self._lock_sharers_raised = True
         self.get_logger().info(
             f"threads sharing the interpreter lock with the stream: SCHED_FIFO {max(1, priority - 1)}; "
-            f"lock switch interval {switch_s * 1e3:.2g} ms"
+            f"lock switch interval {switch_s * 1e3:.2g} ms; garbage collection in the stream's slack"
         )
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -93,6 +94,7 @@ class LifecycleTransitions:
         self._lifecycle = "inactive"  # goals are refused from now on
         self._worker.cancel("the planner was deactivated")
         self._end_stream("deactivated")
+        self._collector.disable()  # automatic collection again
         if self._lock_sharers_raised:  # no stream, no reason to outrank the machine's other processes
             lower_threads()
             self._lock_sharers_raised = False
@@ -111,6 +113,7 @@ class LifecycleTransitions:
         """Whatever the state: the hold if streaming, then stop everything (the node is finalized)."""
         if self._lifecycle in ("inactive", "active"):
             self._end_stream("shutdown")
+        self._collector.disable()
         self._lifecycle = "finalized"
         status = getattr(self, "_status", None)
         if status is not None:

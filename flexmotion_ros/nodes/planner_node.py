@@ -122,6 +122,7 @@ from ..execution import (
 from ..execution.learning import identification_settings
 from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
+from ..execution.realtime import SlackCollector
 from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
 from . import messages, multi_axis
@@ -198,6 +199,7 @@ class PlannerNode(
         super().__init__(NODE_NAME, **node_kwargs)
         self._children = planning
         self._lock_sharers_raised = False  # the other threads under SCHED_FIFO (stream_priority, planning children)
+        self._collector = SlackCollector()  # garbage collection in the stream's slack (enabled with the above)
         self._lifecycle = "unconfigured"  # unconfigured / inactive / active / finalized
         self._configure_error: BaseException | None = None
         self._configured_entities: list[tuple[str, Any]] = []
@@ -440,6 +442,9 @@ class PlannerNode(
         announces every ~3.6 s): the writer's matched count, not the reader's,
         says when samples published from now on reach it.
         """
+        stream = getattr(self, "stream", None)
+        if stream is not None and stream.idle and not stream.hold_when_idle:
+            self._collector.idle()  # a silent idle stream has no deadline: collect what is due here
         n = self.commands_publisher.get_subscription_count()
         before, self._command_subscribers = self._command_subscribers, n
         if n > 0 and before == 0:

@@ -36,6 +36,7 @@ class StreamGlue:
             on_finish=self._on_move_finished,
             priority=int(v["stream_priority"]),
             on_fault=self._on_stream_fault,
+            after_sample=self._collector,
             **clock_pair,
         )
         # stops kept ready for the running move (started on activate)

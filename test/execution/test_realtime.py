@@ -64,3 +64,54 @@ def test_every_thread_but_the_numeric_ones_goes_fifo_and_threads_born_later_inhe
     assert lines["RAISED"] == "True True True 7"
     assert lines["INHERITED"] == "True True"
     assert lines["LOWERED"] == "True True True"
+
+
+def _garbage(n: int) -> None:
+    for _ in range(n):
+        a: list = []
+        a.append(a)  # a cycle: only a collection frees it
+
+
+def test_the_slack_collector_collects_only_what_fits_before_the_next_deadline_or_has_waited_too_long():
+    import gc
+
+    from flexmotion_ros.execution.realtime import SlackCollector
+
+    t = {"now": 0.0, "step": 0.004}
+
+    def clock() -> float:  # every reading 4 ms later: a measured collection costs 4 ms
+        t["now"] += t["step"]
+        return t["now"]
+
+    col = SlackCollector(fraction=0.5, force_after_s=(1.0, 5.0, 60.0), clock=clock)
+    young = gc.get_threshold()[0]
+    was = gc.isenabled()
+    try:
+        gc.enable()
+        col.enable()
+        assert not gc.isenabled()  # automatic collection off while enabled
+        gc.collect()
+        _garbage(2 * young)
+        assert gc.get_count()[0] >= young  # due, and not collected automatically
+        col(0.001)  # no cost known yet: the first collection runs (and is measured: 4 ms)
+        assert col.collections[0] == 1 and gc.get_count()[0] < young
+        assert col.expected_cost(0) == 0.004
+        _garbage(2 * young)
+        col(0.005)  # 4 ms does not fit in half of 5 ms: it waits
+        col(0.005)
+        assert col.collections[0] == 1
+        col(0.010)  # fits in half of 10 ms
+        assert col.collections[0] == 2 and col.forced[0] == 0
+        _garbage(2 * young)
+        col(0.001)
+        t["now"] += 1.5  # due for longer than force_after_s[0] = 1 s: collected anyway
+        col(0.001)
+        assert col.collections[0] == 3 and col.forced[0] == 1
+        col.disable()
+        assert gc.isenabled()
+    finally:
+        col.disable()
+        if was:
+            gc.enable()
+        else:
+            gc.disable()
