@@ -24,8 +24,11 @@ It reports, per mode:
   the look-ahead (the stop's first sample at most ``look-ahead`` samples after
   the request, from the planner's answer);
 * stream gaps: the largest interval between consecutive commands at the
-  planner (DDS source timestamps; the stream holds while idle), against two
-  periods;
+  planner (DDS source timestamps, recorded by ``command_recorder.py`` in a
+  process of its own; the stream holds while idle), against two periods;
+  and beside it a bare deadline loop (``deadline_probe.py``) at the same
+  rate and priority: a stream gap that overlaps one of the loop's is the
+  machine's (counted apart), as is the hypervisor's stolen time;
 * settled lockstep moves at the target at rest (plant state, 1e-9);
 * the planner's RSS at the start and the end (and every 1000 requests).
 
@@ -139,23 +142,19 @@ class Storm:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64, Float64MultiArray
+        from std_msgs.msg import Float64
         from std_srvs.srv import Trigger
         from trajectory_msgs.msg import JointTrajectory
 
-        from flexmotion_ros.nodes.planner_node import COMMAND_QOS
         from flexmotion_ros.nodes.plant_node import PLANT_QOS
 
         self.node = rclpy.create_node("storm", namespace=ns)
         self.ns = ns
         self.lock = threading.Lock()
-        self.send_ns: list[int] = []  # DDS source timestamps of the commands (planner send times)
-        self.values: list[float] = []
         self.state: np.ndarray | None = None
         self.planner_status: dict = {}
         self.plant_status: dict = {}
         n = self.node
-        n.create_subscription(Float64MultiArray, "commands", self._on_command, COMMAND_QOS)
         n.create_subscription(JointState, "joint_states", self._on_state, PLANT_QOS)
         n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         goal_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -169,11 +168,6 @@ class Storm:
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
         self.types = {"GetPlan": GetPlan, "Trigger": Trigger, "Float64": Float64, "JointTrajectory": JointTrajectory}
-
-    def _on_command(self, msg, info) -> None:
-        with self.lock:
-            self.send_ns.append(int(info["source_timestamp"]))
-            self.values.append(float(msg.data[0]))
 
     def _on_state(self, msg) -> None:
         from flexmotion_ros.nodes import messages
@@ -241,6 +235,12 @@ def run_mode(args, mode: str) -> dict:
     planner_log, plant_log = tmp / "planner.log", tmp / "plant.log"
     lockstep = mode == "lockstep"
     plant = start_node("plant_node", ns, params, [f"lockstep:={'true' if lockstep else 'false'}"], plant_log)
+    # the commands are recorded by a process of their own (bench/command_recorder.py): this one is busy
+    commands_out = tmp / "commands.npz"
+    recorder = subprocess.Popen(
+        [sys.executable, str(ROOT / "bench" / "command_recorder.py"), "--topic", f"{ns}/commands"]
+        + ["--out", str(commands_out), "--priority", str(max(0, stream_priority(args) - 2))]
+    )
     planner = start_node("planner_node", ns, params, list(args.planner_params), planner_log)
     storm = Storm(ns)
     probe_out = tmp / "probe.npy"
@@ -341,6 +341,7 @@ def run_mode(args, mode: str) -> dict:
             lambda: (
                 storm.goal_pub.get_subscription_count() >= 1
                 and planner_value("streaming_ready") == "true"
+                and int(planner_value("command_subscribers", "0") or 0) >= 2  # the plant and the recorder
                 and storm.move.service_is_ready()
                 and storm.stop.service_is_ready()
                 and storm.plan.service_is_ready()
@@ -442,6 +443,7 @@ def run_mode(args, mode: str) -> dict:
         time.sleep(0.5)
         rss.append((sent, rss_mb(planner.pid)))
     finally:
+        teardown_ns = time.time_ns()  # the stream's gaps are judged up to here (shutdown reconfigures DDS)
         crashed = {name: p.poll() for name, p in (("planner", planner), ("plant", plant)) if p.poll() is not None}
         for p in (planner, plant):
             if p.poll() is None:
@@ -454,6 +456,11 @@ def run_mode(args, mode: str) -> dict:
                 p.kill()
                 status[name] = "killed"
         storm.close()
+        recorder.send_signal(signal.SIGINT)
+        try:
+            recorder.wait(timeout=20.0)
+        except subprocess.TimeoutExpired:
+            recorder.kill()
         if probe is not None:
             probe.send_signal(signal.SIGINT)
             probe.wait(timeout=10.0)
@@ -464,9 +471,10 @@ def run_mode(args, mode: str) -> dict:
     internal_log += [line for line in plant_log.read_text().splitlines() if INTERNAL.search(line)]
     topic_refused = len(re.findall(r"(~/goal|~/joint_trajectory): refused: ", log))
     early_refused = len(re.findall(r"~/joint_trajectory: refused: .*time_from_start: 0.01 s is before", log))
-    with storm.lock:
-        t = np.array(storm.send_ns, dtype=np.int64)
-        last = storm.values[-1] if storm.values else math.nan
+    recorded = np.load(commands_out) if commands_out.exists() else {"send_ns": np.zeros(0, np.int64), "values": []}
+    t = np.asarray(recorded["send_ns"], dtype=np.int64)
+    last = float(recorded["values"][-1]) if t.size else math.nan
+    t = t[t < teardown_ns]
     gaps_ms = np.diff(t) * 1e-6 if t.size > 1 else np.array([0.0])
     two_periods_ns = int(2e9 / args.rate)
     probe_ns = np.load(probe_out) if probe is not None and probe_out.exists() else np.zeros(0, dtype=np.int64)
@@ -507,6 +515,7 @@ def run_mode(args, mode: str) -> dict:
         gap_max_ms=float(gaps_ms.max()),
         gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / args.rate)),
         gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / args.rate)[:40]],
+        largest_gaps=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.argsort(gaps_ms)[::-1][:10]],
         gaps_shared_with_probe=int(shared.sum()),
         probe_wakes=int(probe_ns.size),
         probe_gaps_over_two_periods=int(np.sum(probe_gaps_ms > 2e3 / args.rate)),

@@ -55,6 +55,10 @@ class PlanProcessError(RuntimeError):
     """The child failed: an unexpected exception there (its type named), or the child died."""
 
 
+class PlanProcessClosed(PlanProcessError):
+    """The child was closed (the node is shutting down) before or while this was planned."""
+
+
 def _encode_error(exc: BaseException) -> tuple:
     return ("error", type(exc).__name__, getattr(exc, "parameter", None), getattr(exc, "reason", None), str(exc))
 
@@ -104,6 +108,7 @@ class PlanProcess:
         self._answers = answers
         self._lock = threading.Lock()
         self.dead = False
+        self.closed = False  # close() was called: the owner is shutting down
 
     @classmethod
     def fork(cls, name: str = "flexmotion-planning") -> PlanProcess:
@@ -136,14 +141,20 @@ class PlanProcess:
     def __call__(self, config: PlannerConfig, problem: Any, rate_hz: float | None = None) -> PlanResult:
         """Plan in the child; raises what ``plan_move`` raised there, or :class:`PlanProcessError`."""
         with self._lock:
+            if self.closed:
+                raise PlanProcessClosed(f"the planning process {self.name} was closed: the node is shutting down")
             if self.dead:
                 raise PlanProcessError(f"the planning process {self.name} ({self.pid}) is gone")
             try:
                 pickle.dump((config, problem, rate_hz), self._requests, protocol=pickle.HIGHEST_PROTOCOL)
                 self._requests.flush()
                 answer = pickle.load(self._answers)  # blocks in read(): the lock of this interpreter is free
-            except (EOFError, OSError, pickle.UnpicklingError) as exc:
+            except (EOFError, OSError, ValueError, pickle.UnpicklingError) as exc:
                 self.dead = True
+                if self.closed:  # close() closed the pipes under this call (ValueError: a closed file)
+                    raise PlanProcessClosed(
+                        f"the planning process {self.name} was closed: the node is shutting down"
+                    ) from None
                 raise PlanProcessError(f"the planning process {self.name} ({self.pid}) died: {exc!r}") from None
         if answer[0] == "ok":
             return answer[1]
@@ -151,6 +162,7 @@ class PlanProcess:
 
     def close(self, timeout: float = 2.0) -> None:
         """Tell the child to stop and reap it (killed if it does not stop within ``timeout`` s)."""
+        self.closed = True
         if not self.dead:
             try:
                 pickle.dump(None, self._requests)
@@ -208,4 +220,4 @@ class PlanningProcesses:
         self.stop.close()
 
 
-__all__ = ["PlanProcess", "PlanProcessError", "PlanningProcesses", "serve"]
+__all__ = ["PlanProcess", "PlanProcessClosed", "PlanProcessError", "PlanningProcesses", "serve"]

@@ -43,6 +43,7 @@ from ..execution import (
     splice_point,
 )
 from ..execution.measured_state import AT_REST_TOL, EarlyArrival
+from ..execution.plan_process import PlanProcessClosed
 from ..execution.realtime import lower_threads
 from ..execution.requests import Request, RequestKind
 from . import messages, multi_axis
@@ -245,6 +246,8 @@ class GoalHandling:
             out = self._plan_request(target, execute, source, t_req, arrival_time, ticket)
         except (FlexmotionError, SolverError) as exc:
             return self._refuse(source, str(exc))
+        except PlanProcessClosed as exc:  # a request still in flight when the node shuts down
+            return self._refuse(source, f"not planned: {exc}")
         except Exception as exc:  # noqa: BLE001 -- keep serving whatever a method raises
             self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")
             return self._refuse(source, f"{type(exc).__name__}: {exc}")
@@ -310,6 +313,8 @@ class GoalHandling:
         if children is None:
             return _plan_here
         child = children.goal if _has_target(problem) else children.stop
+        if child.closed:  # shutting down: calling it refuses (PlanProcessClosed), nothing is planned here
+            return child
         if child.dead:
             self.get_logger().error(f"planning process {child.name} is gone: planning in-process from now on")
             self._children = None
