@@ -431,8 +431,19 @@ class PlannerNode(
             "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
             "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
             **self._output_status(),
+            **self._collector_status(),
             **self._feedback_status(),
             **self._identification_values(),
+        }
+
+    def _collector_status(self) -> dict[str, Any]:
+        """Garbage collections run in the stream's slack per generation, and how many were forced (if enabled)."""
+        col = self._collector
+        if not col.enabled:
+            return {}
+        return {
+            "gc_in_slack": "/".join(str(n) for n in col.collections),
+            "gc_forced": "/".join(str(n) for n in col.forced),
         }
 
     def _check_streaming_ready(self) -> None:

@@ -229,6 +229,7 @@ def test_under_stream_priority_every_thread_of_the_planner_outranks_ordinary_pro
                 names[tid] = Path(f"/proc/{proc.pid}/task/{tid}/comm").read_text().strip()
             except (ProcessLookupError, FileNotFoundError):
                 policies.pop(tid, None)
+        status = ros.probe.planner_status()
         children = [int(c) for c in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
         child_policies = [os.sched_getscheduler(c) for c in children]
     finally:
@@ -243,3 +244,5 @@ def test_under_stream_priority_every_thread_of_the_planner_outranks_ordinary_pro
     assert len(normal) == 1, (policies, names)
     assert all(p == (os.SCHED_FIFO, 49) for t, p in policies.items() if p[1] != 50 and t not in normal), policies
     assert child_policies == [os.SCHED_OTHER, os.SCHED_OTHER], children  # planning: the goal and the stop child
+    # automatic collection off: the stream thread collects in its slack (per generation, on /diagnostics)
+    assert status is not None and "gc_in_slack" in status[2] and "gc_forced" in status[2], status
