@@ -14,7 +14,11 @@ preemption), and compares it with what the timeline predicts there.
   closed loop is the open-loop plan, sample for sample;
 * otherwise it plans from the predicted state to the same target (or a
   stop), with the node's planner (certified and verified like every plan),
-  and returns the segment to splice at ``k_s``;
+  and returns the segment to splice at ``k_s``; the plan being executed
+  there is the planner's warm start (:func:`warm_start_at`: the rest of its
+  certified continuous optimum -- the same switch structure, nearby switch
+  times -- so the switch-time Newton starts next to the answer; the planner
+  solves cold if it does not converge, and the answer is the same);
 * if planning fails, the current plan goes on and the outcome says why.
 
 The node wiring (a later wave) calls :func:`replan` from its planning
@@ -35,10 +39,11 @@ from scipy.stats import chi2
 from ..core.config import PlannerConfig
 from ..core.errors import FlexmotionError, GoalError
 from ..core.methods.table import plan_move
-from ..core.model.boundary import MoveProblem, state_to_rest
+from ..core.model.boundary import state_to_rest
 from ..core.model.modal_model import ModalModel
-from ..core.results import PlanResult
+from ..core.results import BangBangProfile, PlanResult
 from ..core.simulation.exact import modal_amplitudes, step_matrices
+from ..core.time_optimal.warm_start import WarmStart, remainder
 from .timeline import Segment, predicted_state
 from .trajectory import timeline_commands
 
@@ -147,6 +152,32 @@ def carry(model: ModalModel, dt: float, x, P, commands) -> tuple[np.ndarray, np.
     return x, P
 
 
+def plan_of(info) -> PlanResult | None:
+    """The plan a segment's ``info`` records: a :class:`PlanResult`, or a record with one as ``result`` (a node's)."""
+    if isinstance(info, PlanResult):
+        return info
+    result = getattr(info, "result", None)
+    return result if isinstance(result, PlanResult) else None
+
+
+def warm_start_at(timeline: Sequence[Segment], sample: int, dt: float) -> WarmStart | None:
+    """The rest of the plan being executed at ``sample`` (global index), as a planner's warm start.
+
+    The segment playing ``sample`` must record its plan (:func:`plan_of`)
+    with a certified continuous optimum; its remainder after ``(sample -
+    start) dt`` seconds is the guess (:func:`~flexmotion_ros.core.time_optimal.warm_start.remainder`).
+    None otherwise (a shaped plan, a short move planned sampled-first, the hold).
+    """
+    for seg in timeline:
+        if seg.start <= sample < seg.end:
+            plan = plan_of(seg.info)
+            profile = plan.continuous if plan is not None else None
+            if not isinstance(profile, BangBangProfile):
+                return None
+            return remainder(profile, (sample - seg.start) * dt)
+    return None
+
+
 def replan_point(
     timeline: Sequence[Segment],
     k_next: int,
@@ -224,7 +255,8 @@ def replan(
     move_size: float | None = None,
     min_deviation: float = MIN_DEVIATION,
     gate_probability: float = GATE_PROBABILITY,
-    planner: Callable[[PlannerConfig, MoveProblem, float], PlanResult] = plan_move,
+    planner: Callable[..., PlanResult] = plan_move,
+    warm_start: bool = True,
 ) -> ReplanOutcome:
     """Decide whether to replan from the estimate, and plan if so (module docstring).
 
@@ -242,7 +274,11 @@ def replan(
         With a covariance, replan only if the deviation's Mahalanobis
         distance squared exceeds this chi-square quantile (``n`` degrees of freedom).
     planner : callable
-        ``planner(config, problem, rate_hz) -> PlanResult`` (default :func:`plan_move`).
+        ``planner(config, problem, rate_hz) -> PlanResult`` (default :func:`plan_move`);
+        with a warm start, called ``planner(config, problem, rate_hz, warm_start=...)``.
+    warm_start : bool
+        Pass the rest of the plan being executed at the splice as the
+        planner's warm start (:func:`warm_start_at`), if there is one.
     """
     model = config.model
     dt = 1.0 / config.rate_hz
@@ -273,8 +309,13 @@ def replan(
                 f"(Mahalanobis^2 {point.significance:.3g} <= {gate:.3g})",
             )
     t0 = time.perf_counter()
+    problem = state_to_rest(model, config.u_max, point.state, target)
+    warm = warm_start_at(timeline, point.sample, dt) if warm_start else None
     try:
-        result = planner(config, state_to_rest(model, config.u_max, point.state, target), config.rate_hz)
+        if warm is None:
+            result = planner(config, problem, config.rate_hz)
+        else:
+            result = planner(config, problem, config.rate_hz, warm_start=warm)
     except FlexmotionError as exc:
         took = time.perf_counter() - t0
         return ReplanOutcome(
@@ -304,8 +345,10 @@ __all__ = [
     "ReplanPoint",
     "ReplanStatus",
     "carry",
+    "plan_of",
     "relative_deviation",
     "replan",
     "replan_point",
     "timeline_move_size",
+    "warm_start_at",
 ]

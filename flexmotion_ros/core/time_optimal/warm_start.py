@@ -1,0 +1,193 @@
+"""Warm start of the time-optimal planner from a plan being executed (replanning from a nearby state).
+
+A node that replans during a move always has the plan it is executing.  The
+remainder of a time-optimal plan from its instant ``t_s`` is itself
+time-optimal from the state it reaches there (Bellman), with the same final
+co-state ``nu = -lambda(T)`` and the same switch times-to-go ``tau = T - t``
+(the ones still ahead).  A state near that trajectory (a small disturbance, a
+small model error, an estimate) has an optimum with, usually, the same
+structure and nearby switch times: the switch-time Newton
+(:func:`~.lean.refine`) from there converges in a few iterations, without the
+smoothed convex problems that find a structure from nothing.
+
+:func:`remainder` turns a certified profile and the elapsed time into a
+:class:`WarmStart`; :func:`warm_path` runs Newton (with the structure edits of
+:func:`~.structure_guess.newton_from_guess`) from it and hands every converged
+candidate to the planner's own exact simulation and Pontryagin certificate;
+only a profile with an ``OPTIMAL`` certificate is returned.  Otherwise (the
+disturbance changed the structure beyond what the edits repair) it returns
+None and the planner solves cold, unchanged.  A warm start changes the
+planning time, never the certified answer.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SolverError
+from ..model.boundary import MoveProblem
+from ..results import BangBangProfile, CertificateStatus, SolverPath
+from ..simulation.modal_response import ModalResponse
+from ..tolerances import MAX_SWITCHES
+from .lean import LeanMove
+from .lean import refine as lean_refine
+from .structure_guess import newton_from_guess
+
+#: A switch closer than this (relative to the remaining duration) to the splice is dropped from the guess:
+#: Newton cannot keep it inside ``(0, T)`` when the state moved it a little earlier.
+EDGE_RTOL = 1e-6
+#: Newton iterations per structure: from a nearby state the remainder's structure converges in a few; a guess
+#: that needs more is far off, and the cold solver is cheaper than insisting.
+MAX_ITER = 12
+#: Candidates certified (the first structure and one edit from the certificate's zeros) before the cold solver
+#: takes over.
+MAX_CANDIDATES = 2
+
+
+@dataclass(frozen=True, kw_only=True)
+class WarmStart:
+    """A guess of a time-optimal move's switch structure, e.g. the rest of a plan being executed.
+
+    Attributes
+    ----------
+    roots : ndarray
+        Switch times-to-go (s), ascending, inside ``(0, duration)``.
+    sign0 : float
+        Sign of the input on the last interval (just before arrival), +1 or -1.
+    nu : ndarray
+        Final co-state direction ``-lambda(T)`` (any positive factor) in the
+        planner's state (without the position when the final position is free).
+    duration : float
+        Duration guess (s).
+    include_position : bool
+        Whether the state includes the rigid-body position (the final position is given).
+    """
+
+    roots: np.ndarray
+    sign0: float
+    nu: np.ndarray
+    duration: float
+    include_position: bool
+
+
+def remainder(profile: BangBangProfile | None, elapsed: float) -> WarmStart | None:
+    """The rest of ``profile`` after ``elapsed`` seconds as a warm start (None if there is none).
+
+    Parameters
+    ----------
+    profile : BangBangProfile or None
+        A certified time-optimal profile (the plan being executed).
+    elapsed : float
+        Time since its start (s) at the instant the new plan starts.
+
+    Returns
+    -------
+    WarmStart or None
+        None without a profile, a passed certificate or time left.
+    """
+    if profile is None or not math.isfinite(elapsed) or elapsed < 0.0:
+        return None
+    cert = profile.certificate
+    T = float(profile.duration)
+    left = T - elapsed
+    if cert is None or not cert.passed or not left > 0.0 or profile.levels.size == 0:
+        return None
+    nu = -np.asarray(cert.costate_final, dtype=float)
+    if not (np.all(np.isfinite(nu)) and np.any(nu)):
+        return None
+    roots = np.sort(T - np.asarray(profile.switch_times, dtype=float))
+    roots = roots[(roots > EDGE_RTOL * left) & (roots < left * (1.0 - EDGE_RTOL))]
+    return WarmStart(
+        roots=roots,
+        sign0=float(np.sign(profile.levels[-1])) or 1.0,
+        nu=nu,
+        duration=left,
+        include_position=bool(profile.problem.include_position),
+    )
+
+
+#: ``assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low) -> BangBangProfile``:
+#: the planner's exact simulation and certificate (raises :class:`SolverError` if the target is missed).
+Assemble = Callable[..., BangBangProfile]
+
+
+def warm_path(
+    problem: MoveProblem,
+    system,
+    x0: np.ndarray,
+    warm: WarmStart,
+    t0: float,
+    T_low: float,
+    assemble: Assemble,
+) -> BangBangProfile | None:
+    """Switch-time Newton from ``warm``, certified by ``assemble``; None if no candidate is ``OPTIMAL``.
+
+    Parameters
+    ----------
+    problem : MoveProblem
+        The move (model, ``u_max`` in N, initial state, target).
+    system : ModalResponse
+        Its closed-form responses (the planner's state).
+    x0 : ndarray
+        Shifted initial state (state units).
+    warm : WarmStart
+        The guess.
+    t0 : float
+        ``time.perf_counter()`` at the start of planning (s).
+    T_low : float
+        Proved lower bound on the optimal time (s): the rigid body's.
+    assemble : callable
+        The planner's simulation and certificate (:data:`Assemble`).
+
+    Returns
+    -------
+    BangBangProfile or None
+        ``extra["solver_path"] = "fast"``, ``extra["fast_path_stage"] = "warm"``.
+    """
+    if (
+        not isinstance(system, ModalResponse)
+        or warm.include_position != problem.include_position
+        or warm.nu.size != system.n
+        or warm.roots.size > MAX_SWITCHES
+    ):
+        return None
+    T = max(float(warm.duration), T_low)
+    lm = LeanMove(system, x0, problem.u_max, T)
+    nuh = warm.nu * lm.s
+    candidates = 0
+
+    def check(nuh, T, roots, signs):
+        nonlocal candidates
+        if candidates >= MAX_CANDIDATES:
+            return None, None, 0.0  # no more edits: the cold solver decides
+        candidates += 1
+        try:
+            profile = assemble(problem, system, nuh / lm.s, T, roots, signs, t0, lm.evaluations, T_low)
+        except SolverError:
+            return None, None, 0.0
+        cert = profile.certificate
+        if cert.status is CertificateStatus.OPTIMAL:
+            return profile, None, 0.0
+        return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+
+    profile = newton_from_guess(
+        None,
+        nuh / np.linalg.norm(nuh),
+        T,
+        check,
+        max_switches=MAX_SWITCHES,
+        refine=lambda roots, sign0, nuh, T: lean_refine(lm, roots, sign0, nuh, T, MAX_ITER),
+        structure=(warm.roots, warm.sign0),
+    )
+    if profile is not None:
+        profile.extra["solver_path"] = SolverPath.FAST
+        profile.extra["fast_path_stage"] = "warm"
+        profile.extra["fast_path_candidates"] = candidates
+    return profile
+
+
+__all__ = ["EDGE_RTOL", "MAX_CANDIDATES", "MAX_ITER", "WarmStart", "remainder", "warm_path"]
