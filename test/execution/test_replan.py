@@ -77,9 +77,11 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     """The plant's frequency is 5 % off: replanning from its measured state every 0.2 s leaves far less.
 
     Each replan is a time-optimal move on the nominal model, so the closed loop keeps correcting and
-    arrives later than the nominal plan (about 2.2x here); after its arrival it is at rest."""
+    arrives later than the nominal plan; the corrections after arrival are planned at a bound proportional
+    to what is left (``gentle``), about half a period each, so it settles within 15 s of the nominal
+    arrival; then it is at rest."""
     plant = WB.with_changes(omega=(1.05 * WB.omega[0],))
-    hold = int(round(6.5 * RATE))
+    hold = int(round(15.0 * RATE))
     open_loop = simulate_samples(plant, WB.rest_state(0.0), np.concatenate([first.commands, np.zeros(hold)]), DT)
     period = max(1, int(round(0.2 * RATE)))  # 0.2 s: half the plans of 0.1 s, to keep the suite quick
     timeline = [first]
@@ -89,7 +91,7 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     replans = 0
     while k < end_k:
         if (k - START) % period == 0 and k + 1 < end_k:
-            out = replan(timeline, k, 1, x, k, config=CFG, target=GOAL, min_deviation=1e-9)
+            out = replan(timeline, k, 1, x, k, config=CFG, target=GOAL, min_deviation=1e-6)
             assert out.status is not ReplanStatus.FAILED, out.reason
             if out.status is ReplanStatus.REPLANNED:
                 timeline = [*timeline, out.segment]
@@ -99,7 +101,7 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     closed = residual(plant, x, GOAL)
     opened = residual(plant, open_loop[-1], GOAL)
     assert replans > 10 and timeline[-1].end < end_k  # arrived within the window
-    assert opened > 0.1 and closed < 1e-6 and closed < opened / 10.0, (closed, opened)
+    assert opened > 0.1 and closed < 1e-5 and closed < opened / 10.0, (closed, opened)
 
 
 def test_a_failed_replan_leaves_the_plan_and_says_why(first):
