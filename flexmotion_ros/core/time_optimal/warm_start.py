@@ -33,7 +33,7 @@ from ..model.boundary import MoveProblem
 from ..results import BangBangProfile, CertificateStatus, SolverPath
 from ..simulation.modal_response import ModalResponse
 from ..tolerances import MAX_SWITCHES
-from .lean import LeanMove
+from .lean import LeanMove, structure_from_samples
 from .lean import refine as lean_refine
 from .structure_guess import newton_from_guess
 
@@ -46,6 +46,8 @@ MAX_ITER = 12
 #: Candidates certified (the first structure and one edit from the certificate's zeros) before the cold solver
 #: takes over.
 MAX_CANDIDATES = 2
+#: Where :func:`guesses` puts a switch added at an end (time-to-go, fraction of the duration).
+EDGE_GUESS = 0.02
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -108,6 +110,35 @@ def remainder(profile: BangBangProfile | None, elapsed: float) -> WarmStart | No
         duration=left,
         include_position=bool(profile.problem.include_position),
     )
+
+
+def guesses(warm: WarmStart, T: float, lm: LeanMove):
+    """Structures to start Newton from: the remainder's, then edits a disturbance most often makes.
+
+    1. the remainder's switches;
+    2. the sign changes of its switching function ``S(tau) = nu^T e^{A tau} B``
+       sampled on the lean grid, with a narrow pair wherever ``|S|`` nearly
+       touches zero (:func:`~.lean.structure_from_samples`): a disturbance
+       turns such a near-tangency into a notch;
+    3. each of those with one switch more at the end (a rest-to-rest
+       optimum's ``S`` vanishes at arrival) or at the splice
+       (time-to-go :data:`EDGE_GUESS` of ``T`` from there).
+
+    Newton moves the switches from there to their place; duplicates are skipped by the caller.
+    """
+    base = [(warm.roots, warm.sign0)]
+    tau = np.linspace(0.0, T, lm.grid_points(T) + 1)
+    S = lm.response.switching(warm.nu, tau)
+    sampled = structure_from_samples(tau, S, lm.n)
+    if sampled[0].size != warm.roots.size or sampled[1] != warm.sign0:
+        base.append(sampled)
+    yield from base
+    d = EDGE_GUESS * T
+    for roots, sign0 in base:
+        if roots.size == 0 or roots[0] > 2.0 * d:
+            yield np.concatenate([[d], roots]), -sign0
+        if roots.size == 0 or roots[-1] < T - 2.0 * d:
+            yield np.concatenate([roots, [T - d]]), sign0
 
 
 #: ``assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low) -> BangBangProfile``:
@@ -174,15 +205,21 @@ def warm_path(
             return profile, None, 0.0
         return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
 
-    profile = newton_from_guess(
-        None,
-        nuh / np.linalg.norm(nuh),
-        T,
-        check,
-        max_switches=MAX_SWITCHES,
-        refine=lambda roots, sign0, nuh, T: lean_refine(lm, roots, sign0, nuh, T, MAX_ITER),
-        structure=(warm.roots, warm.sign0),
-    )
+    tried: list = []
+    profile = None
+    for structure in guesses(warm, T, lm):
+        profile = newton_from_guess(
+            None,
+            nuh / np.linalg.norm(nuh),
+            T,
+            check,
+            tried,
+            max_switches=MAX_SWITCHES,
+            refine=lambda roots, sign0, nuh, T: lean_refine(lm, roots, sign0, nuh, T, MAX_ITER),
+            structure=structure,
+        )
+        if profile is not None or candidates >= MAX_CANDIDATES:
+            break
     if profile is not None:
         profile.extra["solver_path"] = SolverPath.FAST
         profile.extra["fast_path_stage"] = "warm"
@@ -190,4 +227,4 @@ def warm_path(
     return profile
 
 
-__all__ = ["EDGE_RTOL", "MAX_CANDIDATES", "MAX_ITER", "WarmStart", "remainder", "warm_path"]
+__all__ = ["EDGE_GUESS", "EDGE_RTOL", "MAX_CANDIDATES", "MAX_ITER", "WarmStart", "guesses", "remainder", "warm_path"]
