@@ -6,9 +6,9 @@ as the plant node's ``measurements`` do; every replan is spliced 8 samples
 (0.4 s) ahead, as under load.  With full-force corrections the loop
 limit-cycles (each small correction is a time-optimal bang-bang at ``u_max``
 that swings the mode as much as the move did; 15 % off, it leaves more than it
-corrected: 0.22 of the move after 25 s, still correcting after 30, worse than the open loop's 0.15); with
-corrections at a bound proportional to the deviation (``replan(..., gentle=True)``,
-the default) it converges.
+corrected: 0.165 of the move after 30 s, still correcting); with corrections
+at a bound proportional to the deviation, after the plan has arrived
+(``replan(..., gentle=True)``) it converges.
 """
 
 from __future__ import annotations
