@@ -77,7 +77,10 @@ def test_warm_and_cold_give_the_same_certified_optimum(case):
     event(f"warm start answered: {took_warm(warm)}")
     note = describe(problem)
     assert "fast_path_error" not in warm.extra, (warm.extra["fast_path_error"], note)
-    check_continuous(problem, warm)  # independent expm check, signs, proved optimality
+    try:
+        check_continuous(problem, warm)  # independent expm check, signs, proved optimality
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}; path {warm.extra}; cold {cold.duration!r} {cold.extra}") from None
     assert cold.certified, note
     same_optimum(warm, cold)
 
