@@ -72,7 +72,7 @@ from .reachable_set import (
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
 from .switch_newton import structure_newton
-from .warm_start import WarmStart, warm_path
+from .warm_start import WarmStart, WarmTools, warm_path
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
 
@@ -107,6 +107,10 @@ MAX_EVALUATIONS = 400
 #: fraction of the fast path's time, and hands over to it (unchanged) when it
 #: finds nothing.  Only with :data:`FAST_PATH`.
 LEAN_PATH = True
+#: What the warm start of a replan (:mod:`.warm_start`) runs on: the lean path's pieces.
+WARM_TOOLS = WarmTools(
+    lean_move=LeanMove, refine=lean_refine, structure_of=structure_from_samples, newton=newton_from_guess
+)
 
 
 def _smoothed_start(
@@ -300,7 +304,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     warm_error = None
     if warm_start is not None and FAST_PATH:
         try:
-            warm = warm_path(problem, system, x0, warm_start, t0, T_low, _assemble)
+            warm = warm_path(problem, system, x0, warm_start, t0, T_low, _assemble, WARM_TOOLS)
         except Exception as exc:  # noqa: BLE001 - a guess only: whatever went wrong, the cold solver decides
             warm, warm_error = None, repr(exc)
         if warm is not None:

@@ -33,9 +33,6 @@ from ..model.boundary import MoveProblem
 from ..results import BangBangProfile, CertificateStatus, SolverPath
 from ..simulation.modal_response import ModalResponse
 from ..tolerances import MAX_SWITCHES
-from .lean import LeanMove, structure_from_samples
-from .lean import refine as lean_refine
-from .structure_guess import newton_from_guess
 
 #: A switch closer than this (relative to the remaining duration) to the splice is dropped from the guess:
 #: Newton cannot keep it inside ``(0, T)`` when the state moved it a little earlier.
@@ -115,13 +112,13 @@ def remainder(profile: BangBangProfile | None, elapsed: float) -> WarmStart | No
     )
 
 
-def guesses(warm: WarmStart, T: float, lm: LeanMove):
+def guesses(warm: WarmStart, T: float, lm, structure_of: Callable):
     """Structures to start Newton from: the remainder's, then edits a disturbance most often makes.
 
     1. the remainder's switches;
     2. the sign changes of its switching function ``S(tau) = nu^T e^{A tau} B``
        sampled on the lean grid, with a narrow pair wherever ``|S|`` nearly
-       touches zero (:func:`~.lean.structure_from_samples`): a disturbance
+       touches zero (``structure_of``: :func:`~.lean.structure_from_samples`): a disturbance
        turns such a near-tangency into a notch;
     3. each of those with one switch more at the end (a rest-to-rest
        optimum's ``S`` vanishes at arrival) or at the splice
@@ -132,7 +129,7 @@ def guesses(warm: WarmStart, T: float, lm: LeanMove):
     base = [(warm.roots, warm.sign0)]
     tau = np.linspace(0.0, T, lm.grid_points(T) + 1)
     S = lm.response.switching(warm.nu, tau)
-    sampled = structure_from_samples(tau, S, lm.n)
+    sampled = structure_of(tau, S, lm.n)
     if sampled[0].size != warm.roots.size or sampled[1] != warm.sign0:
         base.append(sampled)
     yield from base
@@ -142,6 +139,31 @@ def guesses(warm: WarmStart, T: float, lm: LeanMove):
             yield np.concatenate([[d], roots]), -sign0
         if roots.size == 0 or roots[-1] < T - 2.0 * d:
             yield np.concatenate([roots, [T - d]]), sign0
+
+
+@dataclass(frozen=True, kw_only=True)
+class WarmTools:
+    """The solver's pieces :func:`warm_path` runs on, passed in by the solver.
+
+    This module sits beside :mod:`.lean` and :mod:`.structure_guess` (not
+    above them), which keeps the core's import chains short.
+
+    Attributes
+    ----------
+    lean_move : callable
+        :class:`~.lean.LeanMove` ``(response, x0, u_max, T_scale)``.
+    refine : callable
+        :func:`~.lean.refine` ``(lm, roots, sign0, nuh, T, max_iter)``.
+    structure_of : callable
+        :func:`~.lean.structure_from_samples` ``(tau, S, n)``.
+    newton : callable
+        :func:`~.structure_guess.newton_from_guess`.
+    """
+
+    lean_move: Callable
+    refine: Callable
+    structure_of: Callable
+    newton: Callable
 
 
 #: ``assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low) -> BangBangProfile``:
@@ -157,6 +179,7 @@ def warm_path(
     t0: float,
     T_low: float,
     assemble: Assemble,
+    tools: WarmTools,
 ) -> BangBangProfile | None:
     """Switch-time Newton from ``warm``, certified by ``assemble``; None if no candidate is ``OPTIMAL``.
 
@@ -176,6 +199,8 @@ def warm_path(
         Proved lower bound on the optimal time (s): the rigid body's.
     assemble : callable
         The planner's simulation and certificate (:data:`Assemble`).
+    tools : WarmTools
+        The lean path's pieces and the structure-editing Newton.
 
     Returns
     -------
@@ -191,7 +216,7 @@ def warm_path(
     ):
         return None
     T = max(float(warm.duration), T_low)
-    lm = LeanMove(system, x0, problem.u_max, T)
+    lm = tools.lean_move(system, x0, problem.u_max, T)
     nuh = warm.nu * lm.s
     candidates = 0
 
@@ -213,15 +238,15 @@ def warm_path(
 
     tried: list = []
     profile = None
-    for structure in guesses(warm, T, lm):
-        profile = newton_from_guess(
+    for structure in guesses(warm, T, lm, tools.structure_of):
+        profile = tools.newton(
             None,
             nuh / np.linalg.norm(nuh),
             T,
             check,
             tried,
             max_switches=MAX_SWITCHES,
-            refine=lambda roots, sign0, nuh, T: lean_refine(lm, roots, sign0, nuh, T, MAX_ITER),
+            refine=lambda roots, sign0, nuh, T: tools.refine(lm, roots, sign0, nuh, T, MAX_ITER),
             structure=structure,
         )
         if profile is not None or candidates >= MAX_CANDIDATES:
@@ -240,6 +265,7 @@ __all__ = [
     "MAX_CANDIDATES",
     "MAX_ITER",
     "WarmStart",
+    "WarmTools",
     "guesses",
     "remainder",
     "warm_path",

@@ -173,7 +173,9 @@ def test_candidates_are_bounded():
     problem = state_to_rest(WB, 1.0, state_on(nominal, 0.5), 1.0)
     move = prepare(problem)
     T_low = rigid_time(WB, 1.0, move.x0, True)
-    out = warm_path(problem, move.response, move.x0, remainder(nominal, 0.5), 0.0, T_low, assemble)
+    out = warm_path(
+        problem, move.response, move.x0, remainder(nominal, 0.5), 0.0, T_low, assemble, time_optimal.WARM_TOOLS
+    )
     assert out is None and 1 <= len(calls) <= warm_module.MAX_CANDIDATES
 
 
