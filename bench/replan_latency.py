@@ -14,8 +14,17 @@ vibrating state.  From it, in one run:
   the other columns compare with (same run, same load);
 * ``cont``: ``plan_move`` without a rate -- the certified continuous plan;
 * ``sampled``: ``plan_move`` at ``--rate`` -- the exact ZOH plan a node needs to stream;
-* ``replan``: ``execution.replan.replan`` -- carry the estimate to the splice
-  (10 samples ahead), decide, and plan at ``--rate`` (what the node calls).
+* ``rpl cold``: ``execution.replan.replan(..., warm_start=False)`` -- carry the
+  estimate to the splice (10 samples ahead), decide, and plan at ``--rate``
+  from nothing;
+* ``rpl warm``: the same with the plan being executed (the nominal one) as
+  the planner's warm start (what the node calls: ``warm_start=True``, the
+  default): Newton from the rest of its switch structure, the cold solver if
+  that yields no certified optimum;
+* ``hit``: how many warm replans the warm start answered (the others fell
+  back to the cold solver); ``dT`` / ``dsw``: the largest difference between
+  the cold and the warm certified optimum's duration / switch times (s), and
+  ``dK`` the largest difference of their sample counts, over every state.
 
 Wall-time latency median / p99 / max (ms) over the states, and failures
 (a plan the solver refused: the current plan would go on).
@@ -72,25 +81,29 @@ def main() -> None:
         f"kick <= {a.kick} N s, swing <= {a.swing:.0%} of the move's"
     )
     print(
-        f"{'modes':>5} {'move m':>7} {'T nom s':>8} | {'r2r med':>8} | {'cont med':>8} {'p99':>8} {'max':>8} | "
-        f"{'ZOH med':>8} {'p99':>8} {'max':>8} | {'rpl med':>8} {'p99':>8} {'max':>8} | {'failed':>6}"
+        f"{'modes':>5} {'T nom s':>8} | {'r2r med':>7} | {'cont med':>8} {'p99':>7} | {'ZOH med':>8} {'p99':>7} | "
+        f"{'cold med':>8} {'p99':>7} {'max':>7} | {'warm med':>8} {'p99':>7} {'max':>7} | {'hit':>7} "
+        f"{'dT s':>7} {'dsw s':>7} {'dK':>3} | {'failed':>6}"
     )
-    print("-" * 125)
+    print("-" * 150)
     for n in (1, 2, 3):
         built = chain([0.5] * (n + 1), [400.0] * n, [0.4] * n)
         model = built.model
         u_max = 10.0
         gamma = 0.5 * abs(model.b0) * u_max * a.move_s**2  # bang-bang rigid move of move_s
         cfg = PlannerConfig(model=model, u_max=u_max, rate_hz=a.rate)
-        nominal = plan_move(cfg, rest_to_rest(model, u_max, gamma), a.rate).sampled
-        seg = Segment(np.asarray(nominal.commands, float), np.asarray(nominal.states, float), start=0)
+        planned = plan_move(cfg, rest_to_rest(model, u_max, gamma), a.rate)
+        nominal = planned.sampled
+        # the segment records its plan, as the node's do: the warm start is the rest of it at the splice
+        seg = Segment(np.asarray(nominal.commands, float), np.asarray(nominal.states, float), start=0, info=planned)
         excursion = np.max(np.abs(nominal.states[:, 2::2]), axis=0)
         r2r = []
         for _ in range(20):
             t0 = time.perf_counter()
             plan_move(cfg, rest_to_rest(model, u_max, gamma), None)
             r2r.append(1e3 * (time.perf_counter() - t0))
-        cont, sampled, full, failed = [], [], [], 0
+        cont, sampled, full, warm, failed = [], [], [], [], 0
+        hits, dT, dsw, dK = 0, 0.0, 0.0, 0
         for _ in range(a.states):
             k = int(rng.uniform(0.1, 0.9) * seg.samples)
             x = predicted_state([seg], k).copy()
@@ -108,15 +121,26 @@ def main() -> None:
                 failed += 1
                 continue
             t0 = time.perf_counter()
-            out = replan([seg], k, LEAD, x, k, config=cfg, target=gamma)
+            out = replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=False)
             took = 1e3 * (time.perf_counter() - t0)
-            if out.status is ReplanStatus.REPLANNED:
-                full.append(took)
-            elif out.status is ReplanStatus.FAILED:
+            t0 = time.perf_counter()
+            out_w = replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=True)
+            took_w = 1e3 * (time.perf_counter() - t0)
+            if out.status is not ReplanStatus.REPLANNED or out_w.status is not ReplanStatus.REPLANNED:
                 failed += 1
+                continue
+            full.append(took)
+            warm.append(took_w)
+            c, w = out.result.continuous, out_w.result.continuous
+            if c is not None and w is not None:
+                hits += w.extra.get("fast_path_stage") == "warm"
+                dT = max(dT, abs(c.duration - w.duration))
+                same = c.switch_times.size == w.switch_times.size
+                dsw = max(dsw, float(np.max(np.abs(c.switch_times - w.switch_times), initial=0.0)) if same else np.inf)
+            dK = max(dK, abs(out.result.sampled.commands.size - out_w.result.sampled.commands.size))
         print(
-            f"{n:5d} {gamma:7.3g} {nominal.duration:8.3f} | {np.median(r2r):8.2f} | {stats(cont)} | {stats(sampled)} | "
-            f"{stats(full)} | {failed:6d}"
+            f"{n:5d} {nominal.duration:8.3f} | {np.median(r2r):7.2f} | {stats(cont)[:17]} | {stats(sampled)[:17]} | "
+            f"{stats(full)} | {stats(warm)} | {hits:3d}/{len(warm):<3d} {dT:7.1e} {dsw:7.1e} {dK:3d} | {failed:6d}"
         )
 
 

@@ -12,7 +12,7 @@ Measured (``bench/storm.py``, 2 CPUs at load 6, a 200 Hz stream under
 SCHED_FIFO): planning in a thread left 39 gaps over two periods in 6 s, in the
 child none (max 8.4 ms).
 
-The protocol is pickle over two pipes: ``(config, problem, rate_hz)`` in,
+The protocol is pickle over two pipes: ``(config, problem, rate_hz, warm_start)`` in,
 ``("ok", PlanResult)`` or ``("error", type name, parameter, reason, message)``
 out.  Our own errors (:mod:`flexmotion_ros.core.errors`) are rebuilt as
 themselves; anything else becomes :class:`PlanProcessError` naming the
@@ -81,9 +81,9 @@ def serve(requests: Any, answers: Any) -> None:
             return
         if job is None:
             return
-        config, problem, rate_hz = job
+        config, problem, rate_hz, warm_start = job
         try:
-            answer: tuple = ("ok", plan_move(config, problem, rate_hz))
+            answer: tuple = ("ok", plan_move(config, problem, rate_hz, warm_start=warm_start))
         except Exception as exc:  # noqa: BLE001 -- every failure is answered, the loop goes on
             answer = _encode_error(exc)
         try:
@@ -138,15 +138,20 @@ class PlanProcess:
         os.close(to_parent_w)
         return cls(pid, os.fdopen(to_child_w, "wb"), os.fdopen(to_parent_r, "rb"), name)
 
-    def __call__(self, config: PlannerConfig, problem: Any, rate_hz: float | None = None) -> PlanResult:
-        """Plan in the child; raises what ``plan_move`` raised there, or :class:`PlanProcessError`."""
+    def __call__(
+        self, config: PlannerConfig, problem: Any, rate_hz: float | None = None, *, warm_start: Any = None
+    ) -> PlanResult:
+        """Plan in the child; raises what ``plan_move`` raised there, or :class:`PlanProcessError`.
+
+        ``warm_start``: ``plan_move``'s (a replan's guess, the rest of the plan being executed).
+        """
         with self._lock:
             if self.closed:
                 raise PlanProcessClosed(f"the planning process {self.name} was closed: the node is shutting down")
             if self.dead:
                 raise PlanProcessError(f"the planning process {self.name} ({self.pid}) is gone")
             try:
-                pickle.dump((config, problem, rate_hz), self._requests, protocol=pickle.HIGHEST_PROTOCOL)
+                pickle.dump((config, problem, rate_hz, warm_start), self._requests, protocol=pickle.HIGHEST_PROTOCOL)
                 self._requests.flush()
                 answer = pickle.load(self._answers)  # blocks in read(): the lock of this interpreter is free
             except (EOFError, OSError, ValueError, pickle.UnpicklingError) as exc:

@@ -37,7 +37,7 @@ from sensor_msgs.msg import JointState
 
 from ..core.errors import ConfigError, ModelError
 from ..core.model.measurement import measurement_map
-from ..execution.feedback import FeedbackSettings, StreamEstimator, feedback_settings
+from ..execution.feedback import FeedbackSettings, StreamEstimator, feedback_settings, stale_reason
 from ..execution.output import OutputMode
 from ..execution.replan import ReplanStatus, replan
 from ..execution.splice import PLAN_TIME_WINDOW, lead_samples
@@ -167,7 +167,9 @@ class FeedbackGlue:
         period = self._fb.replan_period_s
         next_at = time.monotonic() + period
         while not self._fb_stop.wait(max(0.0, next_at - time.monotonic())):
-            next_at += period
+            # a replan that overran its period is not followed by a burst of catch-up replans (each from an
+            # estimate a few samples newer, each splicing over the last): the next one is a period from now
+            next_at = max(next_at + period, time.monotonic() + 0.5 * period)
 
             if self._lifecycle != "active" or self.stream.idle or self._planning_a_goal():
                 continue
@@ -186,11 +188,12 @@ class FeedbackGlue:
         est = self._estimator.estimate() if self._estimator is not None else None
         if est is None or est.sample < timeline[0].start:
             self._fb_counts["skipped"] += 1
-            self._fb_last = (
-                (self._estimator.fault or "no estimate yet")
-                if est is None
-                else "the estimate is older than the timeline"
-            )
+            self._fb_last = "no estimate yet" if est is None else "the estimate is older than the timeline"
+            return
+        stale = stale_reason(est, self._fb.replan_period_s, self._config.rate_hz)
+        if stale is not None:  # a stale state is not guessed from: the plan goes on until readings come
+            self._fb_counts["skipped"] += 1
+            self._fb_last = stale
             return
         rec = timeline[-1].info
         target = rec.target if isinstance(rec, MoveRecord) else None
@@ -212,7 +215,8 @@ class FeedbackGlue:
             covariance=est.P,
             move_size=getattr(self, "_fb_move_size", None),
             min_deviation=self._fb.min_deviation,
-            planner=lambda c, problem, rate: self._planner_for(problem)(c, problem, rate),
+            # the plan being executed at the splice is the planner's warm start (replan passes it as warm_start=)
+            planner=lambda c, problem, rate, **warm: self._planner_for(problem)(c, problem, rate, **warm),
         )
         self._fb_last = f"{out.status.value}: {out.reason}"
         if out.status is ReplanStatus.FAILED:

@@ -83,9 +83,11 @@ class Outcome:
     info: dict = field(default_factory=dict)
 
 
-def _plan_here(config: AnyConfig, problem, rate_hz: float | None) -> PlanResult:
+def _plan_here(config: AnyConfig, problem, rate_hz: float | None, *, warm_start=None) -> PlanResult:
     """``plan_move`` (``plan_multi_move`` for several inputs) in this process (looked up at each call: tests replace it)."""
-    return plan_move(config, problem, rate_hz)
+    if warm_start is None:
+        return plan_move(config, problem, rate_hz)
+    return plan_move(config, problem, rate_hz, warm_start=warm_start)
 
 
 def _has_target(problem) -> bool:

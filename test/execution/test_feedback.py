@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from flexmotion_ros.core.errors import ConfigError, ModelError
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import step_matrices
-from flexmotion_ros.execution.feedback import FeedbackSettings, StreamEstimator, feedback_settings
+from flexmotion_ros.execution.feedback import (
+    STALE_PERIODS,
+    FeedbackSettings,
+    StreamEstimate,
+    StreamEstimator,
+    feedback_settings,
+    stale_reason,
+)
 
 WB = ModalModel(b0=0.5, omega=[2**0.5], zeta=[0.0], b=[1.0])
 DT = 0.01
@@ -67,3 +76,12 @@ def test_unobservable_readings_and_bad_settings_are_refused():
         feedback_settings({"feedback.replan_period_s": -0.1})
     with pytest.raises(ConfigError, match="feedback.min_deviation"):
         feedback_settings({"feedback.min_deviation": 0.0})
+
+
+def test_an_estimate_predicted_long_without_readings_is_stale():
+    limit = math.ceil(STALE_PERIODS * 0.1 * 100.0)  # samples: two 0.1 s periods at 100 Hz
+    fresh = StreamEstimate(x=np.zeros(4), P=np.eye(4), sample=500, measured_to=500 - limit)
+    late = StreamEstimate(x=np.zeros(4), P=np.eye(4), sample=500, measured_to=500 - limit - 1)
+    assert stale_reason(fresh, 0.1, 100.0) is None
+    reason = stale_reason(late, 0.1, 100.0)
+    assert reason is not None and f"{limit + 1} samples predicted" in reason

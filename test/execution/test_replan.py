@@ -8,6 +8,7 @@ receives are exactly those the timeline sends (:func:`timeline_commands`).
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,7 +19,14 @@ from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import modal_amplitudes, simulate_samples
-from flexmotion_ros.execution.replan import ReplanStatus, carry, relative_deviation, replan, replan_point
+from flexmotion_ros.execution.replan import (
+    ReplanStatus,
+    carry,
+    relative_deviation,
+    replan,
+    replan_point,
+    warm_start_at,
+)
 from flexmotion_ros.execution.timeline import Segment
 from flexmotion_ros.execution.trajectory import timeline_commands
 
@@ -77,9 +85,11 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     """The plant's frequency is 5 % off: replanning from its measured state every 0.2 s leaves far less.
 
     Each replan is a time-optimal move on the nominal model, so the closed loop keeps correcting and
-    arrives later than the nominal plan (about 2.2x here); after its arrival it is at rest."""
+    arrives later than the nominal plan; the corrections after arrival are planned at a bound proportional
+    to what is left (``gentle``), about half a period each, so it settles within 15 s of the nominal
+    arrival; then it is at rest."""
     plant = WB.with_changes(omega=(1.05 * WB.omega[0],))
-    hold = int(round(6.5 * RATE))
+    hold = int(round(15.0 * RATE))
     open_loop = simulate_samples(plant, WB.rest_state(0.0), np.concatenate([first.commands, np.zeros(hold)]), DT)
     period = max(1, int(round(0.2 * RATE)))  # 0.2 s: half the plans of 0.1 s, to keep the suite quick
     timeline = [first]
@@ -89,7 +99,7 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     replans = 0
     while k < end_k:
         if (k - START) % period == 0 and k + 1 < end_k:
-            out = replan(timeline, k, 1, x, k, config=CFG, target=GOAL, min_deviation=1e-9)
+            out = replan(timeline, k, 1, x, k, config=CFG, target=GOAL, min_deviation=1e-6, gentle=True)
             assert out.status is not ReplanStatus.FAILED, out.reason
             if out.status is ReplanStatus.REPLANNED:
                 timeline = [*timeline, out.segment]
@@ -99,7 +109,7 @@ def test_periodic_replanning_beats_the_open_loop_under_a_model_error(first):
     closed = residual(plant, x, GOAL)
     opened = residual(plant, open_loop[-1], GOAL)
     assert replans > 10 and timeline[-1].end < end_k  # arrived within the window
-    assert opened > 0.1 and closed < 1e-6 and closed < opened / 10.0, (closed, opened)
+    assert opened > 0.1 and closed < 1e-5 and closed < opened / 10.0, (closed, opened)
 
 
 def test_a_failed_replan_leaves_the_plan_and_says_why(first):
@@ -133,3 +143,36 @@ def test_deviation_measure_and_carry():
     assert P.shape == (4, 4)
     with pytest.raises(Exception, match="later than the splice"):
         replan_point([Segment(np.zeros(3), np.zeros((4, 4)), start=0)], 0, 1, np.zeros(4), 5, model=WB, dt=DT)
+
+
+def test_the_plan_being_executed_is_the_warm_start_and_a_failed_one_falls_back(first):
+    """The segment's recorded plan (a PlanResult, or a node's record with one as ``result``) is the warm start."""
+    result = plan_move(CFG, state_to_rest(WB, 1.0, WB.rest_state(0.0), GOAL), RATE)
+    seg = Segment(np.asarray(result.sampled.commands, float), np.asarray(result.sampled.states, float), start=START)
+    assert warm_start_at([seg], START + 20, DT) is None  # no plan recorded
+    seg.info = SimpleNamespace(result=result)  # as a node's MoveRecord
+    ws = warm_start_at([seg], START + 20, DT)
+    assert ws is not None and abs(ws.duration - (result.continuous.duration - 20 * DT)) < 1e-12
+    seg.info = result
+    assert warm_start_at([seg], START + 20, DT) is not None
+    assert warm_start_at([seg], seg.end + 5, DT) is None  # nothing plays there
+    # a small disturbance: the warm replan is the cold one, and the planner is told the guess
+    x = simulate_samples(WB, WB.rest_state(0.0), seg.commands[:20], DT)[-1] + np.array([0.0, 1e-4, 0.0, 0.0])
+    seen = []
+
+    def spy(config, problem, rate_hz, **kwargs):
+        seen.append(kwargs.get("warm_start"))
+        return plan_move(config, problem, rate_hz, **kwargs)
+
+    warm = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, planner=spy, gentle=False)
+    cold = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, warm_start=False, gentle=False)
+    assert seen and seen[0] is not None
+    assert warm.status is cold.status is ReplanStatus.REPLANNED
+    assert abs(warm.result.continuous.duration - cold.result.continuous.duration) <= 1e-9
+    assert np.array_equal(warm.segment.commands.shape, cold.segment.commands.shape)
+    # a guess that leads nowhere (the rest of another move): the cold optimum all the same
+    other = plan_move(CFG, state_to_rest(WB, 1.0, WB.rest_state(0.0), -3.0 * GOAL), RATE)
+    seg.info = other
+    wrong = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, gentle=False)
+    assert wrong.status is ReplanStatus.REPLANNED
+    assert abs(wrong.result.continuous.duration - cold.result.continuous.duration) <= 1e-9

@@ -24,6 +24,7 @@ from ..model.boundary import MoveProblem
 from ..parameters import METHOD_OPTIONS, ParameterInfo
 from ..results import PlanResult
 from ..simulation.prepared import PreparedMove, prepare
+from ..time_optimal.warm_start import WarmStart
 from . import auto_robust, fixed_time, friction, limited, min_fuel, robust, shaped, time_optimal
 from .already_there import plan_already_there
 from .common import check_move_budget
@@ -78,7 +79,9 @@ if tuple(METHODS) != METHOD_NAMES:  # pragma: no cover - a programming error, ca
     raise ImportError(f"method table {tuple(METHODS)} and config.METHOD_NAMES {METHOD_NAMES} disagree")
 
 
-def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None) -> PlanResult:
+def plan_move(
+    config: PlannerConfig, problem: MoveProblem, rate_hz: float | None = None, *, warm_start: WarmStart | None = None
+) -> PlanResult:
     """Plan ``problem`` with ``config.method``; with ``rate_hz``, also the exact sampled sequence.
 
     The responses of ``problem`` are built once here (:func:`prepare`) and
@@ -86,6 +89,9 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     validated once here (:func:`~flexmotion_ros.core.config.check_rate_hz`:
     in ``(0, 1e6]``); ``None`` or ``0`` means no rate given (methods that
     need one then use ``config.rate_hz``, validated with the configuration).
+    ``warm_start`` (:class:`~flexmotion_ros.core.time_optimal.warm_start.WarmStart`,
+    e.g. the rest of the plan being executed) speeds up method ``time_optimal``
+    from a nearby state; the other methods ignore it.  The answer does not depend on it.
 
     Raises
     ------
@@ -104,6 +110,8 @@ def plan_move(config: PlannerConfig, problem: MoveProblem, rate_hz: float | None
     check_move_budget(config, move.problem, rate)
     # a move shorter than the resolution is answered "already there", whatever the method
     result = plan_already_there(config, move, rate)
+    if result is None and warm_start is not None and method.name == time_optimal.METHOD_NAME:
+        result = time_optimal.plan(config, move, rate, warm_start)
     if result is None:
         result = method.planner(config, move, rate)
     if result.sampled is not None and result.sampled.commands.size:

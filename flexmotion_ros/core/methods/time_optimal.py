@@ -22,6 +22,7 @@ from ..sampled.zoh import fewest_samples, plan_time_optimal_zoh, reaches_rest_wi
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.rigid_body import rigid_time
 from ..time_optimal.solver import plan_time_optimal
+from ..time_optimal.warm_start import WarmStart
 
 #: A move whose rigid-body lower bound is at most this many samples is planned sampled-first.
 SHORT_MOVE_SAMPLES = 64
@@ -32,14 +33,20 @@ SHORT_MOVE_PHASE = 2.0
 SHORT_MOVE_EXTRA = 48
 
 
-def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
+def plan(
+    config: PlannerConfig,
+    problem: MoveProblem | PreparedMove,
+    rate_hz: float | None,
+    warm_start: WarmStart | None = None,
+) -> PlanResult:
+    """The certified optimum (and its exact ZOH sequence at ``rate_hz``); ``warm_start``: a guess of its switches."""
     move = prepare(problem)  # responses built once for every planner below
     problem = move.problem
     if rate_hz:
         short = _short_move(move, rate_hz)
         if short is not None:
             return short
-    continuous = plan_time_optimal(move)
+    continuous = plan_time_optimal(move, warm_start)
     sampled = plan_time_optimal_zoh(move.with_continuous(continuous), rate_hz, continuous) if rate_hz else None
     return PlanResult(method="time_optimal", problem=problem, continuous=continuous, sampled=sampled)
 

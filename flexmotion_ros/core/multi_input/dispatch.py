@@ -227,8 +227,11 @@ def check_budgets(config: AnyConfig, problem, rate_hz: float | None = None) -> N
     check_move_samples(config, problem, rate_hz)
 
 
-def plan(config: AnyConfig, problem, rate_hz: float | None = None) -> PlanResult | MultiPlanResult:
+def plan(config: AnyConfig, problem, rate_hz: float | None = None, *, warm_start=None) -> PlanResult | MultiPlanResult:
     """Plan ``problem`` with ``config``: ``plan_move`` for one input, ``plan_multi_move`` for several.
+
+    ``warm_start``: a :class:`~flexmotion_ros.core.time_optimal.warm_start.WarmStart`
+    for one input (``plan_move``'s; ignored for several).
 
     Every multi-input sampled command is checked against its input's bound
     here too (never exceeded, whatever the method).
@@ -241,7 +244,7 @@ def plan(config: AnyConfig, problem, rate_hz: float | None = None) -> PlanResult
         No profile passed its own checks.
     """
     if not isinstance(config, MultiPlannerConfig):
-        return plan_move(config, problem, rate_hz)
+        return plan_move(config, problem, rate_hz, warm_start=warm_start)
     result = plan_multi_move(
         problem,
         config.method,
