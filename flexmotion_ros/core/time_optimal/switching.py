@@ -220,7 +220,7 @@ def isolate_roots(
     if cells is None:
         points = grid
     else:
-        idx = np.union1d(cells, cells + 1)  # grid points the kept cells need
+        idx = _cell_points(cells)  # grid points the kept cells need
         points = grid[idx]
     D = np.array(system.switching(nu, points, order=K))  # (K+1, len(points))
     # a zero sitting on an interior grid point (symmetric profiles put one at
@@ -362,6 +362,21 @@ def _ranges(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     return np.arange(int(lengths.sum())) + offsets
 
 
+def _cell_points(cells: np.ndarray) -> np.ndarray:
+    """``union1d(cells, cells + 1)`` for strictly increasing ``cells``, in linear time (no sort).
+
+    Interleaved, ``c_0, c_0 + 1, c_1, c_1 + 1, ...`` is already non-decreasing;
+    only repeats (neighbouring cells) are dropped.  (``union1d`` sorted and
+    hashed 40,000 cells per root isolation: 10 % of an 8-mode plan.)
+    """
+    if cells.size == 0:
+        return cells
+    both = np.empty(2 * cells.size, dtype=cells.dtype)
+    both[0::2] = cells
+    both[1::2] = cells + 1
+    return both[np.concatenate([[True], np.diff(both) > 0])]
+
+
 def _cells_to_examine(system, nu: np.ndarray, grid: np.ndarray, noise: float) -> np.ndarray | None:
     """Indices of the grid cells not proved zero-free by ``system.switching_zero_free``; None: all of them.
 
@@ -386,8 +401,10 @@ def examined_points(system, nu: np.ndarray, grid: np.ndarray, margin: float) -> 
     if blocks is None or not blocks[2]:
         return grid
     starts, ends, _ = blocks
-    cells = _ranges(starts, ends)
-    idx = np.union1d(np.union1d(cells, cells + 1), [0, grid.size - 1])
+    # the points of the kept blocks, ends included (sorted; adjacent blocks share an end), and 0 and T
+    idx = _ranges(starts, ends + 1)
+    idx = np.concatenate([[0], idx, [grid.size - 1]])
+    idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
     return grid[idx]
 
 
