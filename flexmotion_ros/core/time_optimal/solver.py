@@ -167,7 +167,25 @@ def _solve(
     for _ in range(60):
         if sh.evaluations > MAX_EVALUATIONS:  # bounded work: the structure search takes over
             return nuh, T, e.roots, e.signs, math.inf
+        before = sh.evaluations
         nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
+        # an unconverged inner solve gives an upper bound on m(T) only: m < 1 proves T short,
+        # m >= 1 proves nothing; solve on at this T before the bracket is narrowed from above
+        # (a bracket closed on an unproved bound made the iteration crawl to a wrong T and
+        # refuse valid 6-8 mode models after 400 evaluations)
+        restarted = False
+        while m >= 1.0 and sh.evaluations - before > 15 and sh.evaluations <= MAX_EVALUATIONS:
+            before, m_before = sh.evaluations, m
+            nuh_next, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
+            if not m < m_before * (1.0 - 1e-9):  # no progress (a collapsed trust region)
+                if restarted:
+                    break
+                # once from the smoothed problem's minimiser at this T (a fresh start)
+                restarted = True
+                nuh_next, m, dm, e = inner_exact(
+                    sh, T, inner_smooth(sh, T, nuh, SMOOTHING[-1])[0], max_iter=15, rtol=1e-9
+                )
+            nuh = nuh_next
         if e.roots.size > MAX_SWITCHES:
             raise SolverError(
                 f"the optimal move needs about {e.roots.size} switches over {T:.4g} s (more than "
