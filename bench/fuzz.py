@@ -33,7 +33,7 @@ Usage::
         fixed_time,min_fuel --rate 100
 
 ``--show N`` prints the N slowest cases and every crash with a line that
-rebuilds it (``--only I`` reruns case ``I``).
+rebuilds it (``--only I`` reruns case ``I``; ``--only I,J,K`` a list).
 """
 
 from __future__ import annotations
@@ -325,7 +325,7 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=30.0, help="per-case wall-clock guard (s)")
     ap.add_argument("--max-modes", type=int, default=8)
     ap.add_argument("--first", type=int, default=0, help="index of the first case")
-    ap.add_argument("--only", type=int, default=None, help="run case I only")
+    ap.add_argument("--only", default=None, help="run case I only (or a comma-separated list: I,J,K)")
     ap.add_argument("--show", type=int, default=0, help="print the N slowest cases, every crash and solver refusal")
     ap.add_argument("--modes-at-most", type=int, default=None, help="run only the cases with at most this many modes")
     args = ap.parse_args()
@@ -334,11 +334,15 @@ def main() -> None:
         if m not in METHODS:
             raise SystemExit(f"--methods: unknown method {m!r}; one of {sorted(METHODS)}")
     signal.signal(signal.SIGALRM, _alarm)
-    indices = [args.only] if args.only is not None else range(args.first, args.first + args.cases)
+    if args.only is not None:
+        indices = [int(i) for i in args.only.split(",") if i.strip()]
+    else:
+        indices = range(args.first, args.first + args.cases)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(
         f"# flexmotion fuzz (issue 15): python {platform.python_version()}, numpy {np.__version__}, "
-        f"{os.cpu_count()} CPU(s), load {load:.1f}; seed {args.seed}, cases {args.first}..{args.first + args.cases - 1}, "
+        f"{os.cpu_count()} CPU(s), load {load:.1f}; seed {args.seed}, cases "
+        f"{args.only if args.only is not None else f'{args.first}..{args.first + args.cases - 1}'}, "
         f"rate {args.rate or 'none'} Hz, timeout {args.timeout:g} s, N <= {args.max_modes}"
     )
     start = time.perf_counter()

@@ -72,6 +72,7 @@ from .reachable_set import (
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
 from .switch_newton import structure_newton
+from .switching import POINTS_PER_HALF_PERIOD, fastest_frequency
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
 
@@ -103,8 +104,30 @@ NEAR_RIGID = 1e-5
 #: bracket of ``T*`` is narrowed from above only by converged inner solves,
 #: 6-8 mode models that ran out at 400 converge with more (fuzz seed 15,
 #: cases 0..2999: 6 of the 9 refused at 400 plan, certified, with 521-992
-#: evaluations, 0.6-1.1 s); 1200 bounds a refusal to a few seconds.
+#: evaluations, 0.6-1.1 s).  Evaluations on long grids cost more: the budget
+#: falls to :data:`MIN_EVALUATIONS` as the grid grows past
+#: :data:`BUDGET_GRID_POINTS` (:func:`evaluation_budget`), so a refusal stays
+#: within a few seconds whatever the move.
 MAX_EVALUATIONS = 1200
+#: The budget on the longest grids (the one before the bracket was proved).
+MIN_EVALUATIONS = 400
+#: Grid points (bracketing grid of the switching function) up to which the
+#: full :data:`MAX_EVALUATIONS` are allowed.
+BUDGET_GRID_POINTS = 10_000
+
+
+def evaluation_budget(system, T: float) -> int:
+    """Exact co-state evaluations the full solver may spend at duration ``T`` (s).
+
+    :data:`MAX_EVALUATIONS` on grids up to :data:`BUDGET_GRID_POINTS` points,
+    then in proportion to the grid's length (the cost of one evaluation),
+    never below :data:`MIN_EVALUATIONS`.
+    """
+    points = T * fastest_frequency(system) / math.pi * POINTS_PER_HALF_PERIOD
+    scaled = MAX_EVALUATIONS * BUDGET_GRID_POINTS / max(points, 1.0)
+    return int(max(MIN_EVALUATIONS, min(MAX_EVALUATIONS, scaled)))
+
+
 #: Try the lean variant of the fast path (:mod:`.lean`: one smoothing level on
 #: a coarse grid, fused closed forms) first; it answers most small plans in a
 #: fraction of the fast path's time, and hands over to it (unchanged) when it
@@ -169,7 +192,7 @@ def _solve(
     lo, hi = T_low, math.inf
     tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
     for _ in range(60):
-        if sh.evaluations > MAX_EVALUATIONS:  # bounded work: the structure search takes over
+        if sh.evaluations > evaluation_budget(sh.sys, T):  # bounded work: the structure search takes over
             return nuh, T, e.roots, e.signs, math.inf
         before = sh.evaluations
         nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
@@ -178,7 +201,7 @@ def _solve(
         # (a bracket closed on an unproved bound made the iteration crawl to a wrong T and
         # refuse valid 6-8 mode models after 400 evaluations)
         restarted = False
-        while m >= 1.0 and sh.evaluations - before > 15 and sh.evaluations <= MAX_EVALUATIONS:
+        while m >= 1.0 and sh.evaluations - before > 15 and sh.evaluations <= evaluation_budget(sh.sys, T):
             before, m_before = sh.evaluations, m
             nuh_next, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
             if not m < m_before * (1.0 - 1e-9):  # no progress (a collapsed trust region)
@@ -208,7 +231,7 @@ def _solve(
         if gap <= 1e-11:
             break
         T, lo, hi = bracketed_step(T, m, dm, lo, hi)
-    if sh.evaluations > MAX_EVALUATIONS:
+    if sh.evaluations > evaluation_budget(sh.sys, T):
         return nuh, T, e.roots, e.signs, math.inf
     # last resort: full-accuracy nested iteration, then the joint Newton polish
     nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11, max_outer=20)
