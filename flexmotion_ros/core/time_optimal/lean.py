@@ -34,7 +34,7 @@ from ..simulation.error_scale import state_scale
 from ..simulation.modal_kernel import ModalKernel
 from ..tolerances import POLISH_TOL
 from .reachable_set import bracketed_step
-from .switch_newton import DENSE_UP_TO, damped_step
+from .switch_newton import DENSE_UP_TO, ROUNDING_FLOOR, damped_step
 
 #: A local minimum of ``|S|`` below this fraction of its maximum is a near-zero
 #: (the value of ``structure_guess.NEAR_ZERO``; not imported from there so that
@@ -260,6 +260,7 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
         gscale = 1.0 / max(float(np.max(np.linalg.norm(g, axis=1))), 1e-300)
         r[n : n + L] *= gscale
     rn = float(np.max(np.abs(r)))
+    floor = 0.0
     for _ in range(max_iter):
         if rn <= 16.0 * eps:
             break
@@ -273,6 +274,9 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
         except np.linalg.LinAlgError:
             step = np.linalg.lstsq(J, -r, rcond=None)[0]
         if max(float(np.max(np.abs(step[:L]), initial=0.0)), abs(float(step[-1]))) <= 4.0 * eps * T:
+            # below rounding of the times: converged to what they can resolve (as in refine_switches)
+            slope = max(float(np.max(np.abs(J[: n + L, :L]), initial=0.0)), float(np.max(np.abs(J[:n, -1]))))
+            floor = ROUNDING_FLOOR * eps * T * slope
             break
         accepted = damped_step(tau, nuh, T, step, rn, residual)
         if accepted is None:
@@ -282,4 +286,4 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
         first = lm.response.switching(nuh / s, np.array([0.5 * tau[0]]))[0]
         if np.sign(first) != sign0:
             nuh = -nuh
-    return rn <= POLISH_TOL, tau, nuh, T, rn
+    return rn <= max(POLISH_TOL, floor), tau, nuh, T, rn

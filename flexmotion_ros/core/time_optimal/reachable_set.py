@@ -152,7 +152,9 @@ def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 
         Hr = Pinv @ (Z.T @ e.H @ Z) @ Pinv.T
         y, newton = trust_step(g, Hr, radius)
         pred = -float(g @ y + 0.5 * y @ Hr @ y)
-        if pred <= rtol * max(e.h, 1e-300) or radius <= 1e-15 * _s_norm(sh, nuh, T):
+        if pred <= rtol * max(e.h, 1e-300) or (
+            radius <= _S_NORM_CAP * _s_bound(sh, nuh, T) and radius <= 1e-15 * _s_norm(sh, nuh, T)
+        ):
             break
         cand = nuh + Z @ (Pinv.T @ y)
         ec = sh.evaluate(cand, T)
@@ -167,6 +169,16 @@ def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 
     S_T = float(sh.sys.switching(nu, np.array([T]))[0])
     dm = sh.u_max * abs(S_T) + e.h * float(nu @ sh.sys.A_x(e.eAx))
     return nuh, e.h, dm, e
+
+
+#: 1e-15 with a margin for rounding: ``radius`` above this times :func:`_s_bound` is
+#: above 1e-15 times :func:`_s_norm` (the stopping test then skips sampling ``S``).
+_S_NORM_CAP = 1.0001e-15
+
+
+def _s_bound(sh: Shooting, nuh: np.ndarray, T: float) -> float:
+    """An upper bound on :func:`_s_norm`: ``sqrt(T)`` times the sum of the magnitudes of the terms of ``S``."""
+    return math.sqrt(T) * float(sh.sys.switching_magnitude(nuh / sh.s, T)[0])
 
 
 def _s_norm(sh: Shooting, nuh: np.ndarray, T: float) -> float:
