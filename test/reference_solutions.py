@@ -313,6 +313,16 @@ def expm_pieces(problem: MoveProblem, durations, levels) -> np.ndarray:
     return np.array(out)
 
 
+def bang_bang_final_error(problem: MoveProblem, profile) -> float:
+    """Final-state error of a bang-bang profile, each state relative to its excursion along the motion (own expm)."""
+    breaks = np.concatenate([[0.0], profile.switch_times, [profile.duration]])
+    parts = np.maximum(1, np.ceil(np.diff(breaks) / (profile.duration / 200.0))).astype(int)
+    X = expm_pieces(problem, np.repeat(np.diff(breaks) / parts, parts), np.repeat(profile.levels, parts))
+    dev = X - problem.model.rest_state(problem.target)
+    scale = np.max(np.abs(dev), axis=0)
+    return float(np.max(np.abs(dev[-1]) / np.where(scale > 0, scale, 1.0)))
+
+
 def sampled_final_error(problem: MoveProblem, commands, dt: float, reach: bool = False) -> float:
     """Final-state error of a command sequence relative to each state's excursion (own expm).
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, Protocol
 
 import numpy as np
 
+from .errors import SolverError
 from .model.boundary import MoveProblem
 from .simulation.exact import PiecewiseConstant
 
@@ -379,3 +381,25 @@ class PlanResult:
             out.update(self.sampled.to_dict())
         out.update(self.info)
         return out
+
+
+def optimal_or_zeros(build: Callable[[], BangBangProfile]) -> tuple[BangBangProfile | None, Any, float]:
+    """A candidate profile judged by its certificate: the structure searches' one verdict.
+
+    Returns
+    -------
+    tuple
+        ``(profile, None, 0.0)`` if ``build()`` gives a profile certified
+        :attr:`CertificateStatus.OPTIMAL`; else ``(None, zeros_tau, sign0)``,
+        the switching function's zeros its certificate found (time to go, s)
+        and its sign before the first, for the next guess; ``(None, None,
+        0.0)`` if it cannot be built (:class:`~.errors.SolverError`).
+    """
+    try:
+        profile = build()
+    except SolverError:
+        return None, None, 0.0
+    cert = profile.certificate
+    if cert.status is CertificateStatus.OPTIMAL:
+        return profile, None, 0.0
+    return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))

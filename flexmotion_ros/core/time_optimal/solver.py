@@ -47,7 +47,7 @@ import numpy as np
 
 from ..errors import SolverError
 from ..model.boundary import MoveProblem
-from ..results import BangBangProfile, Certificate, CertificateStatus, SolverPath
+from ..results import BangBangProfile, Certificate, CertificateStatus, SolverPath, optimal_or_zeros
 from ..simulation.error_scale import relative_final_state_error
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
@@ -502,14 +502,7 @@ def _lean_path(
     def check(nuh, T, roots, signs):
         nonlocal candidates
         candidates += 1
-        try:
-            profile = _assemble(problem, system, nuh / lm.s, T, roots, signs, t0, 0, T_low)
-        except SolverError:
-            return None, None, 0.0
-        cert = profile.certificate
-        if cert.status is CertificateStatus.OPTIMAL:
-            return profile, None, 0.0
-        return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+        return optimal_or_zeros(lambda: _assemble(problem, system, nuh / lm.s, T, roots, signs, t0, 0, T_low))
 
     try:
         nuh, T, tau, S = smoothed_guess(lm, T_low * (1.0 - 1e-12), T_init)

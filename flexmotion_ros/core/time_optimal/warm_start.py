@@ -28,9 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SolverError
 from ..model.boundary import MoveProblem
-from ..results import BangBangProfile, CertificateStatus, SolverPath
+from ..results import BangBangProfile, SolverPath, optimal_or_zeros
 from ..simulation.modal_response import ModalResponse
 from ..tolerances import MAX_SWITCHES
 
@@ -227,14 +226,9 @@ def warm_path(
         candidates += 1
         if not T > T_low * (1.0 + NEAR_RIGID_RTOL):
             return None, None, 0.0  # at the rigid bound to rounding: the cold solver's cluster logic decides
-        try:
-            profile = assemble(problem, system, nuh / lm.s, T, roots, signs, t0, lm.evaluations, T_low)
-        except SolverError:
-            return None, None, 0.0
-        cert = profile.certificate
-        if cert.status is CertificateStatus.OPTIMAL:
-            return profile, None, 0.0
-        return None, cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+        return optimal_or_zeros(
+            lambda: assemble(problem, system, nuh / lm.s, T, roots, signs, t0, lm.evaluations, T_low)
+        )
 
     tried: list = []
     profile = None

@@ -32,7 +32,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from reference_solutions import expm_pieces, rigid_min_time
+from reference_solutions import bang_bang_final_error as final_error
+from reference_solutions import rigid_min_time
 
 from flexmotion_ros.core import ModalModel, MoveProblem, PlannerConfig
 from flexmotion_ros.core.methods.table import plan_move
@@ -61,16 +62,6 @@ def tuned_problems(draw):
     zeta = [0.0 for _ in ks]  # undamped: the notch at the rigid switch (damped: see the xfail below)
     model = ModalModel(b0=b0, c=0.0, omega=tuple(omega), zeta=tuple(zeta), b=tuple(b))
     return MoveProblem(model, u_max, np.zeros(model.n_states), distance)
-
-
-def final_error(problem: MoveProblem, profile) -> float:
-    """Final-state error, each state relative to its excursion along the motion (own expm)."""
-    breaks = np.concatenate([[0.0], profile.switch_times, [profile.duration]])
-    parts = np.maximum(1, np.ceil(np.diff(breaks) / (profile.duration / 200.0))).astype(int)
-    X = expm_pieces(problem, np.repeat(np.diff(breaks) / parts, parts), np.repeat(profile.levels, parts))
-    dev = X - problem.model.rest_state(problem.target)
-    scale = np.max(np.abs(dev), axis=0)
-    return float(np.max(np.abs(dev[-1]) / np.where(scale > 0, scale, 1.0)))
 
 
 @settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow], deadline=None)

@@ -20,24 +20,14 @@
 from __future__ import annotations
 
 import numpy as np
-from reference_solutions import expm_pieces, rigid_min_time
+from reference_solutions import bang_bang_final_error as _error
+from reference_solutions import rigid_min_time
 
 from flexmotion_ros.core import ModalModel, MoveProblem
 from flexmotion_ros.core.results import SolverPath
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 from flexmotion_ros.core.time_optimal.switching import EXCLUSION_BLOCK, examined_points, sample_grid
-
-
-def _error(problem: MoveProblem, profile) -> float:
-    """Final-state error of a bang-bang profile, each state relative to its excursion (own expm)."""
-    breaks = np.concatenate([[0.0], profile.switch_times, [profile.duration]])
-    parts = np.maximum(1, np.ceil(np.diff(breaks) / (profile.duration / 200.0))).astype(int)
-    X = expm_pieces(problem, np.repeat(np.diff(breaks) / parts, parts), np.repeat(profile.levels, parts))
-    dev = X - problem.model.rest_state(problem.target)
-    scale = np.max(np.abs(dev), axis=0)
-    return float(np.max(np.abs(dev[-1]) / np.where(scale > 0, scale, 1.0)))
-
 
 CASE_216 = (
     ModalModel(
