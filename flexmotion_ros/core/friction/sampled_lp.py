@@ -104,6 +104,10 @@ class FrictionLP:
         self.I = np.arange(model.n_states) if problem.include_position else np.arange(1, model.n_states)
         self._kd: dict[int, tuple] = {}
         self.solves = 0
+        #: LPs that had a solution (whatever its peak): none at all says the samples are too coarse.
+        self.feasible_solves = 0
+        #: Set by :func:`fastest_samples` when more samples stopped changing the least peak.
+        self.stalled = False
 
     def kdata(self, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(G, Hf, free, pw)``: effect of ``u_k`` and of unit friction on interval ``k`` on ``x_K``, the
@@ -194,10 +198,13 @@ class FrictionLP:
             b_eq=np.zeros(A_eq.shape[0]),
             bounds=np.column_stack([lo, hi]),
             method="highs-ds",
-            options=LP_OPTIONS,  # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep
+            # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep; the time limit grows
+            # with the size (a fine structure LP of 2,000 samples takes about 1 s on a loaded machine)
+            options={**LP_OPTIONS, "time_limit": LP_TIME_LIMIT_S * (1.0 + K / 500.0)},
         )
         if res.status != 0 or res.x[imu] <= 0.0:
             return None
+        self.feasible_solves += 1
         t = 1.0 / float(res.x[imu])
         u = res.x[iz : iz + K] * t
         return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w)
@@ -373,10 +380,20 @@ def fastest_samples(
     K = max(K_guess, K_min)
     step = max(1, K // 50)
     first = True
+    flat, last = 0, None
     while not ok(K):
         if first and fixed_point(K):
             break
         first = False
+        if tried[K] is not None and last is not None:
+            # more samples, the same least peak (three times): the end game cannot be resolved at this
+            # period (samples too long for the modes to be brought to rest), so no count will do;
+            # finer samples are the caller's move
+            flat = flat + 1 if abs(tried[K].t - last) <= 1e-6 * last else 0
+            if flat >= 3:
+                lp.stalled = True
+                return None
+        last = tried[K].t if tried[K] is not None else None
         if K >= K_max:
             return None
         K = min(K_max, K + step)

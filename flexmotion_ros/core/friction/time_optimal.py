@@ -78,18 +78,54 @@ def rigid_friction_time(
 ) -> float | None:
     """Proved lower bound (s) on any rest-to-rest move under rigid-body friction, or None.
 
-    For ``c = 0`` from rest: while ``v > 0`` the acceleration lies in
-    ``[-a2, a1]`` (``a1 = |b0| (u_max - F)``, ``a2 = |b0| (u_max + F)``), so
-    ``v(t) <= min(a1 t, a2 (T - t))`` and the distance ``|gamma| <= T^2 a1 a2 / (2 (a1 + a2))``.
-    The modes add constraints only, so the full model is never faster.
+    From rest, while ``v > 0``: ``v' <= c v + a1`` and ``v' >= c v - a2``
+    (``a1 = |b0| (u_max - F)``, ``a2 = |b0| (u_max + F)``), so by comparison
+    ``v(t) <= min(w(t), z(t))`` with ``w`` the full-force rise from rest and
+    ``z`` the full-brake fall to rest at ``T`` (``c = 0``: ``min(a1 t, a2 (T - t))``;
+    ``c = -k < 0``: ``a1 (1 - e^{-k t}) / k`` and ``a2 (e^{k (T - t)} - 1) / k``).
+    The distance ``|gamma|`` is at most the integral of that envelope, which
+    increases with ``T``; the bound is the ``T`` where it equals ``|gamma|``.
+    Intervals with ``v <= 0`` only lose distance, and the modes add
+    constraints only, so the full model is never faster.
     """
     x0 = np.asarray(x0, float)
-    if target is None or model.c != 0.0 or np.any(x0[1:]):
+    if target is None or np.any(x0[1:]):
         return None
     gamma = abs(target - x0[0])
     a1 = abs(model.b0) * (u_max - coulomb_force)
     a2 = abs(model.b0) * (u_max + coulomb_force)
-    return math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+    if model.c == 0.0:
+        return math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+    if gamma == 0.0:
+        return 0.0
+    k = -float(model.c)
+
+    def reach(T: float) -> float:
+        # the envelope's crossing t*: a1 (1 - e^{-k t*}) = a2 (e^{k (T - t*)} - 1); r = T - t* (no overflow)
+        e = math.exp(-k * T)
+        r = math.log1p(-a1 * math.expm1(-k * T) / (a2 + a1 * e)) / k
+        return (a1 * _expm1_minus_x(-k * (T - r)) + a2 * _expm1_minus_x(k * r)) / (k * k)
+
+    hi = math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))  # the undamped bound: the damped one is longer
+    while reach(hi) < gamma:
+        hi *= 2.0
+    lo = 0.5 * hi if reach(0.5 * hi) < gamma else 0.0
+    for _ in range(200):  # bisection to rounding; the bound returned is the lower end (never too long)
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if reach(mid) < gamma:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _expm1_minus_x(x: float) -> float:
+    """``e^x - 1 - x`` without cancellation for small ``|x|``."""
+    if abs(x) < 1e-3:
+        return x * x * (0.5 + x * (1.0 / 6.0 + x / 24.0))
+    return math.expm1(x) - x
 
 
 @dataclass
@@ -237,6 +273,8 @@ def plan_time_optimal_friction(
     def monotone(tau):
         return np.full(np.shape(tau), direction)
 
+    reverses = bool(np.any(template(np.linspace(0.0, 1.0, 257)) != direction))
+
     best: FrictionProfile | None = None
     # 1. the fast path: continuation in F from the frictionless optimum (bounded)
     cont = continue_in_friction(problem, base, F, scale)
@@ -250,22 +288,26 @@ def plan_time_optimal_friction(
     #    velocity-sign piece, the pattern iterated to consistency), polished by Newton
     # the first count guessed from the rigid body's slow-down under friction (c = 0 from rest)
     rigid0 = rigid_friction_time(model, problem.u_max, 0.0, problem.x0, problem.target)
-    T_ref, sampled = base.duration * (lb / rigid0 if lb and rigid0 else 1.0), None
+    T_first = base.duration * (lb / rigid0 if lb and rigid0 else 1.0)
+    T_ref, sampled, finer = T_first, None, STRUCTURE_FINER
     for K_c in STRUCTURE_SAMPLES:
         sol = None
-        for _ in range(3):  # a move much slower than the frictionless one: coarser samples
+        for _ in range(2):  # a move much slower than the frictionless one: coarser samples
             dt_c = T_ref / K_c
             if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
                 dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
             lp = FrictionLP(problem, F, dt_c)
             sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
-            if sol is None:  # the frictionless move's reversals may not suit: a monotone move
+            if sol is None and reverses:  # the frictionless move's reversals may not suit: a monotone move
                 sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
-            if sol is not None:
-                break
+            if sol is not None or not lp.feasible_solves or lp.stalled:
+                break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
             T_ref *= 4.0
         if sol is None:
-            break
+            # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
+            # a long damped move with fast modes): finer samples over the same time
+            T_ref = T_first
+            continue
         sampled = (lp, sol)
         T_ref = sol.K * lp.dt
         if has_stick_arcs(sol.u, F, sol.t):
@@ -277,6 +319,9 @@ def plan_time_optimal_friction(
             best = _better(best, _try_assemble(*got, base, lb, steps, t0))
             if best is not None and best.certified:
                 return best
+        finer -= 1
+        if finer < 0:
+            break
     if best is not None:
         return best  # exact, not a proved extremal: the certificate says which condition failed
     if sampled is not None:
@@ -289,8 +334,11 @@ def plan_time_optimal_friction(
     )
 
 
-#: Samples of the coarse sampled moves the structure is read from, coarsest first.
-STRUCTURE_SAMPLES = (64, 192)
+#: Samples of the coarse sampled moves the structure is read from, coarsest first; the finer ones are
+#: tried when a coarser one has no sequence (or, up to ``STRUCTURE_FINER`` times, gave no extremal).
+STRUCTURE_SAMPLES = (64, 192, 576, 1728)
+#: Finer sampled moves tried after the first one found (its structure gave no certified extremal).
+STRUCTURE_FINER = 1
 #: Residual evaluations (exact friction runs) Newton may spend on the structure of one sampled move.
 STRUCTURE_EVALS = 60
 

@@ -34,6 +34,7 @@ from flexmotion_ros.core.friction.certificate import CLAIM, FrictionStatus
 from flexmotion_ros.core.friction.contact import (
     FrictionSystem,
     contact_at_coordinate,
+    rigid_contact,
     simulate_contact,
     simulate_coulomb,
 )
@@ -451,3 +452,23 @@ def test_issue18_structure_change_no_longer_stalls():
         assert np.max(np.abs(x - target)) < 1e-9
     ref = ivp_modal_friction(m, F, m.rest_state(), cont.input())[-1]  # the continuous move, once more
     assert np.max(np.abs(ref[:2] - target[:2])) < 1e-6
+
+
+@pytest.mark.parametrize("c", [-1e-7, -0.05, -0.9])
+def test_damped_rigid_bound_is_the_bang_bang_move_of_the_rigid_body(c):
+    """The rigid-body bound for ``c < 0`` (new with issue 18's damped cases): it is the time of the
+    accelerate-then-brake move of the rigid body alone, so that move, switched where the two envelopes
+    cross, must rest exactly at the goal in the event-located friction simulation (matrix exponentials)."""
+    b0, u_max, F, gamma = 0.7, 1.3, 0.4, 3.0
+    model = ModalModel(b0=b0, c=c)
+    T = rigid_friction_time(model, u_max, F, [0.0, 0.0], gamma)
+    k = -c
+    a1, a2 = b0 * (u_max - F), b0 * (u_max + F)
+    r = math.log1p(-a1 * math.expm1(-k * T) / (a2 + a1 * math.exp(-k * T))) / k  # brake time
+    u = PiecewiseConstant.from_switches([T - r], [u_max, -u_max], T)
+    x = FrictionSystem(model.A(), model.B(), rigid_contact(model, F)).run([0.0, 0.0], u, [T]).states[0]
+    assert x[0] == pytest.approx(gamma, rel=1e-9)
+    assert abs(x[1]) <= 1e-9 * a1 / max(k, 1.0)
+    # undamped limit and monotone in the damping
+    assert T >= rigid_friction_time(ModalModel(b0=b0), u_max, F, [0.0, 0.0], gamma)
+
