@@ -49,6 +49,8 @@ LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
 SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
 MU_MAX = 1e12
+#: A stuck sample holds ``|u| <= STICK_MARGIN F``: inside the friction band, so rounding cannot make it slip.
+STICK_MARGIN = 1.0 - 1e-6
 #: Fixed-point iterations of the velocity-sign pattern.
 PATTERN_ROUNDS = 3
 
@@ -127,12 +129,23 @@ class FrictionLP:
 
     def velocities(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Rigid-body velocity at instants ``0..K`` (the exact recursion, friction of pattern ``s``)."""
-        drive = self.gv * np.asarray(u, float) - (self.F * self.fv) * np.asarray(s, float)
+        s = np.asarray(s, float)
+        drive = self.gv * np.asarray(u, float) * (s != 0.0) - (self.F * self.fv) * s  # stuck (0): no drive
         v = np.empty(drive.size + 1)
         v[0] = self.x0[1]
         # v_{k+1} = ev v_k + drive_k: a first-order recursion (C loop), the initial value as its state
         v[1:] = lfilter([1.0], [1.0, -self.ev], drive, zi=[self.ev * v[0]])[0]
         return v
+
+    def stuck_rows(self, G: np.ndarray, stuck: np.ndarray) -> np.ndarray:
+        """``G`` with the rigid-body effect of the stuck samples removed (friction cancels the command
+        there; rigid body and modes are decoupled, so the modes keep theirs)."""
+        if not stuck.any():
+            return G
+        G = G.copy()
+        rigid = np.flatnonzero(self.I < 2)
+        G[np.ix_(np.flatnonzero(stuck), rigid)] = 0.0
+        return G
 
     def solve(
         self, K: int, s: np.ndarray, signs: bool = True, held: tuple[np.ndarray, np.ndarray] | None = None
@@ -151,6 +164,9 @@ class FrictionLP:
         G, Hf, free, pw = self.kdata(K)
         s = np.asarray(s, float)
         w = -free + self.F * (s @ Hf)
+        stuck = s == 0.0
+        G = self.stuck_rows(G, stuck)
+        moves = (~stuck).astype(float)  # a stuck sample does not drive the rigid body
         nI = G.shape[1]
         iz, iy, imu = 0, K, 2 * K + 1  # columns: z_0..z_{K-1}, y_0..y_K, mu
         nv = 2 * K + 2
@@ -173,10 +189,19 @@ class FrictionLP:
             [
                 np.column_stack([G.T, -w]).ravel(),
                 [1.0, -self.x0[1]],
-                np.column_stack([np.ones(K), np.full(K, -self.ev), np.full(K, -self.gv), self.F * self.fv * s]).ravel(),
+                np.column_stack([np.ones(K), np.full(K, -self.ev), -self.gv * moves, self.F * self.fv * s]).ravel(),
             ]
         )
         A_eq = coo_matrix((vals, (rows, cols)), shape=(nI + 1 + K, nv)).tocsr()
+        A_ub = b_ub = None
+        if stuck.any():  # held by friction: |u_k| <= F (a hair inside, so rounding cannot make it slip)
+            ks = np.flatnonzero(stuck)
+            n_s = ks.size
+            r2 = np.repeat(np.arange(2 * n_s), 2)
+            c2 = np.column_stack([np.concatenate([iz + ks, iz + ks]), np.full(2 * n_s, imu)]).ravel()
+            v2 = np.column_stack([np.repeat([1.0, -1.0], n_s), np.full(2 * n_s, -self.F * STICK_MARGIN)]).ravel()
+            A_ub = coo_matrix((v2, (r2, c2)), shape=(2 * n_s, nv)).tocsr()
+            b_ub = np.zeros(2 * n_s)
         lo = np.full(nv, -np.inf)
         hi = np.full(nv, np.inf)
         lo[iz : iz + K], hi[iz : iz + K] = -1.0, 1.0
@@ -184,16 +209,23 @@ class FrictionLP:
             mask, sigma = held
             lo[iz + np.flatnonzero(mask)] = hi[iz + np.flatnonzero(mask)] = np.asarray(sigma, float)[mask]
         lo[imu], hi[imu] = 0.0, MU_MAX
+        left, right = s[:-1], s[1:]
+        yj = iy + np.arange(1, K)
         if signs:  # s v_j >= 0 on both sides of every instant (v_j = 0 where the pattern changes sign)
-            left, right = s[:-1], s[1:]
-            yj = iy + np.arange(1, K)
             lo[yj] = np.where((left > 0) & (right > 0), 0.0, np.where((left < 0) & (right < 0), -np.inf, 0.0))
             hi[yj] = np.where((left < 0) & (right < 0), 0.0, np.where((left > 0) & (right > 0), np.inf, 0.0))
+        else:  # at rest on both ends of a stuck sample, whatever the signs
+            at_rest = (left == 0.0) | (right == 0.0)
+            lo[yj[at_rest]] = hi[yj[at_rest]] = 0.0
+        if K and stuck[-1]:
+            lo[iy + K] = hi[iy + K] = 0.0
         cost = np.zeros(nv)
         cost[imu] = -1.0
         self.solves += 1
         res = linprog(
             cost,
+            A_ub=A_ub,
+            b_ub=b_ub,
             A_eq=A_eq,
             b_eq=np.zeros(A_eq.shape[0]),
             bounds=np.column_stack([lo, hi]),
@@ -286,6 +318,7 @@ class FrictionLP:
         js = np.flatnonzero(np.abs(v[1:K]) <= 1e-7 * scale) + 1
         lag = js[:, None] - 1 - np.arange(K)[None, :]
         D = np.where(lag >= 0, self.gv * pw[np.maximum(lag, 0)], 0.0)  # v_j = a_j + D_j u
+        D[:, sol.pattern == 0.0] = 0.0  # a stuck sample does not move the rigid body
         G = np.column_stack([sol.G, D.T])
         w = np.concatenate([sol.w, -a[js]])
         return least_norm_correction(G, w, sol.u, self.problem.u_max)
@@ -302,7 +335,7 @@ class FrictionLP:
         return out
 
 
-def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
+def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = False) -> FrictionSolution | None:
     """A pattern consistent with its own least-peak move (fixed point from ``s0``), solved with sign rows.
 
     The fixed point moves reversals to where the move made with the previous
@@ -310,7 +343,14 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSoluti
     :data:`PATTERN_ROUNDS` the last pattern is used (the sign rows still make
     the result consistent).  Both the fixed point and ``s0`` itself are solved
     with sign rows; the smaller peak wins.
+
+    ``stick=True``: where the move would go backwards the body is held
+    instead (pattern 0: stuck, ``|u| <= F``), and every pattern of the
+    iteration is solved with sign rows (the smallest peak wins): for moves
+    that must rest on the way while the modes are steered.
     """
+    if stick:
+        return _stick_pattern(lp, K, s0)
     s = np.asarray(s0, float).copy()
     seen = []
     for _ in range(PATTERN_ROUNDS):
@@ -332,13 +372,37 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSoluti
     return best
 
 
+#: Rounds of the stick-instead-of-reverse iteration.
+STICK_ROUNDS = 5
+
+
+def _stick_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
+    direction = -1.0 if lp.x0[0] > 0.0 else 1.0  # lp.x0 is the start relative to the target
+    s = np.where(np.asarray(s0, float) == direction, direction, 0.0)
+    best, seen = None, []
+    for _ in range(STICK_ROUNDS):
+        signed = lp.solve(K, s, signs=True)
+        if signed is not None and (best is None or signed.t < best.t):
+            best = signed
+        sol = lp.solve(K, s, signs=False)
+        if sol is None:
+            break
+        v = lp.velocities(sol.u, s)
+        nxt = np.where(direction * (v[:-1] + v[1:]) > 0.0, direction, 0.0)
+        if any(np.array_equal(nxt, p) for p in seen + [s]):
+            break
+        seen.append(s)
+        s = nxt
+    return best
+
+
 def template_pattern(template, K: int) -> np.ndarray:
     """``template(tau)`` (velocity sign at normalised time ``tau`` in [0, 1]) on ``K`` intervals."""
     return np.asarray(template((np.arange(K) + 0.5) / K), float)
 
 
 def fastest_samples(
-    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None
+    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None, stick: bool = False
 ) -> FrictionSolution | None:
     """Fewest samples (searched, not proved) with least peak ``<= u_max``; patterns from ``template``.
 
@@ -348,7 +412,8 @@ def fastest_samples(
     not, then bisection.  Where the current pattern fails (the first probe,
     and one count below the count found) the pattern is iterated to
     consistency (:func:`consistent_pattern`); a better pattern restarts the
-    search down from there (a few rounds).
+    search down from there (a few rounds).  ``stick``: the fixed point holds
+    the body where it would go back (see :func:`consistent_pattern`).
     """
     um = lp.problem.u_max * (1.0 + 1e-12)
     K_max = K_max if K_max is not None else max(8 * K_guess, K_guess + 200)
@@ -370,7 +435,7 @@ def fastest_samples(
         return feasible(tried[K])
 
     def fixed_point(K: int) -> bool:
-        sol = consistent_pattern(lp, K, template_pattern(state["template"], K))
+        sol = consistent_pattern(lp, K, template_pattern(state["template"], K), stick)
         if not feasible(sol):
             return False
         tried[K] = sol
@@ -382,7 +447,7 @@ def fastest_samples(
     first = True
     flat, last = 0, None
     while not ok(K):
-        if first and fixed_point(K):
+        if (first or stick) and fixed_point(K):
             break
         first = False
         if tried[K] is not None and last is not None:

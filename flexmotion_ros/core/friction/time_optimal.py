@@ -291,7 +291,7 @@ def plan_time_optimal_friction(
     T_first = base.duration * (lb / rigid0 if lb and rigid0 else 1.0)
     T_ref, sampled, finer = T_first, None, STRUCTURE_FINER
     for K_c in STRUCTURE_SAMPLES:
-        sol = None
+        sol, stalled = None, False
         for _ in range(2):  # a move much slower than the frictionless one: coarser samples
             dt_c = T_ref / K_c
             if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
@@ -300,9 +300,19 @@ def plan_time_optimal_friction(
             sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
             if sol is None and reverses:  # the frictionless move's reversals may not suit: a monotone move
                 sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
+            stalled = stalled or lp.stalled
             if sol is not None or not lp.feasible_solves or lp.stalled:
                 break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
             T_ref *= 4.0
+        if sol is None and not stalled:
+            # no sliding pattern reaches rest (every sample moving forward or back): a move that rests on
+            # the way, the body held by friction (|u| <= F) while the modes are steered, never moving back
+            # (not where the samples are too long to bring the modes to rest: finer ones are tried first)
+            dt_c = T_first / K_c
+            if rate_hz:
+                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+            lp = FrictionLP(problem, F, dt_c)
+            sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True)
         if sol is None:
             # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
             # a long damped move with fast modes): finer samples over the same time
@@ -380,13 +390,11 @@ def _try_assemble(ext, y, base, lb, steps, t0) -> FrictionProfile | None:
         return None  # missed the target in the exact check: not a move
 
 
-def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile | None:
-    """The fewest-sample move itself (piecewise constant, exact after correction), or None if it misses."""
+def _check_sampled(lp: FrictionLP, u: np.ndarray):
+    """``(u, x(T), run, relative error, deviation)`` if the sequence rests at the target in the exact
+    event-located friction simulation (and stays there), else None."""
     problem = lp.problem
-    u = lp.exact_commands(sol)
-    if u is None:
-        return None
-    dt, K = lp.dt, sol.u.size
+    dt, K = lp.dt, u.size
     T = K * dt
     check = FrictionSystem.for_model(problem.model, lp.F)
     pc = PiecewiseConstant.from_samples(u, dt)
@@ -400,6 +408,27 @@ def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int,
     drift = float(np.max(np.abs((x_after - xT)[I]) / sc[I]))
     if not (rel <= FINAL_STATE_RTOL and drift <= FINAL_STATE_RTOL and np.max(np.abs(u)) <= problem.u_max):
         return None
+    return u, xT, run, rel, dev
+
+
+def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile | None:
+    """The fewest-sample move itself (piecewise constant, exact after correction), or None if it misses.
+
+    The corrected commands are checked first, then the LP's own (a correction can move a command held
+    inside the friction band past it, so that the body slips where the LP has it stuck)."""
+    problem = lp.problem
+    corrected = lp.exact_commands(sol)
+    raw = np.clip(sol.u, -problem.u_max, problem.u_max)
+    for u in (corrected, raw):
+        if u is not None:
+            checked = _check_sampled(lp, u)
+            if checked is not None:
+                break
+    else:
+        return None
+    u, xT, run, rel, dev = checked
+    dt, K = lp.dt, sol.u.size
+    T = K * dt
     cert = FrictionCertificate(
         passed=False,
         switch_residual=math.inf,

@@ -472,3 +472,59 @@ def test_damped_rigid_bound_is_the_bang_bang_move_of_the_rigid_body(c):
     # undamped limit and monotone in the damping
     assert T >= rigid_friction_time(ModalModel(b0=b0), u_max, F, [0.0, 0.0], gamma)
 
+
+#: Fuzz cases of ``bench/fuzz_friction_limited.py --seed 18`` that raised "neither the continuation from
+#: the frictionless optimum nor the structure of a sampled move gave an exact move" (both ``c < 0``):
+#: 195, a long move of a damped rigid body (the coarse samples are too long for the modes to be brought
+#: to rest: every count has the same least peak); 492, two close slow modes and F = 0.5 u_max (no sliding
+#: pattern reaches rest: the body must be held by friction on the way while the modes are steered).
+DAMPED_CASES = {
+    195: (
+        ModalModel(
+            b0=0.7010881507642357,
+            c=-0.5145535505981457,
+            omega=(0.3691326599470246, 2.992410978391293, 8.614077375309595),
+            zeta=(0.2918219725275136, 0.09311612122617004, 0.028614967663583867),
+            b=(-0.9556713406018813, 0.2549199605547329, -1.1135557658361661),
+        ),
+        0.4007626013786231,
+        0.035489805968980194,
+        131.14923761075815,
+    ),
+    492: (
+        ModalModel(
+            b0=0.13422842892094394,
+            c=-0.70400694826743,
+            omega=(0.7721549463467025, 0.7923167284232879, 29.701533690589205),
+            zeta=(0.26457178493966277, 0.27920761139920636, 0.0752186001428152),
+            b=(0.39211715189292795, -0.9704074569056195, -0.5598962490544935),
+        ),
+        0.7454725539854661,
+        0.36988037191729395,
+        0.3668231174880086,
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DAMPED_CASES))
+def test_issue18_damped_rigid_body_cases_plan_exact_moves(case):
+    """Regression (raised SolverError before): a plan whose continuous move and 100 Hz sequence rest at
+    the target in the exact event-located simulation and stay there, within the bound, never faster
+    than the proved rigid-body bound; the continuous move once more by an independent ODE integration."""
+    m, u_max, F, goal = DAMPED_CASES[case]
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    config = PlannerConfig(model=m, u_max=u_max, method="time_optimal_friction", options={"coulomb_force": F})
+    result = plan_move(config, problem, 100.0)
+    cont = result.continuous
+    target = m.rest_state(goal)
+    assert cont.lower_bound is not None and cont.duration >= cont.lower_bound
+    assert cont.certificate.status in set(FrictionStatus) and cont.certificate.message
+    exact = FrictionSystem(m.A(), m.B(), rigid_contact(m, F))  # matrix exponentials, event-located
+    for u, T in ((cont.input(), cont.duration), (result.sampled.input(), result.sampled.duration)):
+        assert np.max(np.abs(u.levels)) <= u_max
+        states = exact.run(problem.x0, u, np.concatenate([np.linspace(0.0, T, 65), [2.0 * T + 1.0]])).states
+        scale = np.max(np.abs(states[:-1] - target), axis=0)
+        assert np.max(np.abs(states[-2:] - target) / scale) < 1e-8  # at rest at T, and still later
+    if cont.duration < 20.0:  # an independent event-located ODE integration (slow on long moves)
+        ref = ivp_modal_friction(m, F, m.rest_state(), cont.input())[-1]
+        assert abs(ref[0] - goal) < 1e-6 * abs(goal)
