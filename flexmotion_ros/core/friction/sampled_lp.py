@@ -21,6 +21,11 @@ sign rows, take the signs of the resulting velocity as the next pattern, until
 they agree (then the signed LP is solved once more, so the result is exactly
 consistent).  :func:`fastest_samples` searches the fewest samples at one rate.
 
+A pattern entry 0 holds the body by friction for that sample (stuck:
+``v = 0`` at both ends, ``|u_k| <= F``, no effect of ``u_k`` on the rigid
+body, the modes driven as ever): moves that must rest on the way while the
+modes are steered (:func:`consistent_pattern` with ``stick=True``).
+
 Nothing here is a proof of optimality: a pattern is a guess, and the LP is
 exact only for it.  Every sequence a planner returns is checked by the
 event-located friction simulation of :mod:`.contact`.

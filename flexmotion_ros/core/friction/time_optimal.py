@@ -19,7 +19,12 @@ from a starting point found in turn by
 2. the structure of the fewest-sample move at a coarse rate
    (:mod:`.sampled_lp`: between reversals the friction is a known force, so
    for a velocity-sign pattern the move is an LP; the pattern is iterated to
-   consistency), read off and polished (:mod:`.structure`).
+   consistency), read off and polished (:mod:`.structure`).  The first
+   sample period comes from the proved rigid-body bound (damped too); where
+   no sequence exists at a period, finer ones are tried (samples too long for
+   the modes to be brought to rest: long moves of a damped rigid body), and
+   where no sliding pattern reaches rest, patterns that hold the body by
+   friction on the way (``|u| <= F`` while the modes are steered).
 
 The result is checked by the exact friction simulation (rest at the target)
 and certified as a Pontryagin extremal (sign structure proved per costate
