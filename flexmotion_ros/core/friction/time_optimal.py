@@ -178,6 +178,9 @@ class FrictionProfile:
     method: str = "time_optimal_friction"
     #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
     sample_period: float | None = None
+    #: An exact sampled move (``exact_sampled``) found on the way to an uncertified bang-bang one, or None:
+    #: the zero-order-hold planner falls back on it when no sequence near this move passes its check.
+    alternative: FrictionProfile | None = None
 
     @property
     def certified(self) -> bool:
@@ -338,6 +341,8 @@ def plan_time_optimal_friction(
         if finer < 0:
             break
     if best is not None:
+        if sampled is not None:
+            best.alternative = _sampled_profile(*sampled, base, lb, steps, t0)
         return best  # exact, not a proved extremal: the certificate says which condition failed
     if sampled is not None:
         prof = _sampled_profile(*sampled, base, lb, steps, t0)
