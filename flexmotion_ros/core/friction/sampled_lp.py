@@ -33,6 +33,7 @@ event-located friction simulation of :mod:`.contact`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -379,12 +380,23 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = Fal
 
 #: Rounds of the stick-instead-of-reverse iteration.
 STICK_ROUNDS = 5
+#: Periods of the slowest mode the body is held at the end of the first stuck candidate.
+STICK_TAIL_PERIODS = 4.0
 
 
 def _stick_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
     direction = -1.0 if lp.x0[0] > 0.0 else 1.0  # lp.x0 is the start relative to the target
     s = np.where(np.asarray(s0, float) == direction, direction, 0.0)
     best, seen = None, []
+    omega = lp.problem.model.omega
+    if omega and K > 1:
+        # first candidate: slide forward, then hold the body for the last few periods of the slowest mode
+        # (the modes brought to rest by |u| <= F alone: a long damped move whose end game needs the body
+        # to wait; the iteration below rarely finds so long a rest)
+        n = min(K // 2, math.ceil(STICK_TAIL_PERIODS * 2.0 * math.pi / min(omega) / lp.dt))
+        tail = np.full(K, direction)
+        tail[K - n :] = 0.0
+        best = lp.solve(K, tail, signs=True)
     for _ in range(STICK_ROUNDS):
         signed = lp.solve(K, s, signs=True)
         if signed is not None and (best is None or signed.t < best.t):

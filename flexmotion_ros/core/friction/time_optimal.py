@@ -326,12 +326,20 @@ def plan_time_optimal_friction(
             # a long damped move with fast modes): finer samples over the same time
             T_ref = T_first
             continue
+        if has_stick_arcs(sol.u, F, sol.t) or np.any(sol.pattern == 0.0):
+            # the body rests for a while (|u| <= F holds it while the modes are steered): no bang-bang
+            # extremal of the sliding system describes that; the sampled move is the answer if it passes
+            # the exact check, else finer samples are tried (an exact bang-bang move found before wins)
+            if best is not None:
+                sampled = (lp, sol)
+                break
+            prof = _sampled_profile(lp, sol, base, lb, steps, t0)
+            if prof is not None:
+                return prof
+            T_ref = T_first
+            continue
         sampled = (lp, sol)
         T_ref = sol.K * lp.dt
-        if has_stick_arcs(sol.u, F, sol.t):
-            # the body rests for a while (|u| = F holds it while the modes are steered): no bang-bang
-            # extremal of the sliding system describes that; the sampled move is the answer
-            break
         got = extremal_from_samples(problem, sol.u, lp.dt, F, scale, sol.t, [STRUCTURE_EVALS])
         if got is not None:
             best = _better(best, _try_assemble(*got, base, lb, steps, t0))

@@ -518,6 +518,20 @@ DAMPED_CASES = {
         0.36988037191729395,
         0.3668231174880086,
     ),
+    # 616: a 700 s move whose end game needs the body to wait (held by friction) while three slow damped
+    # modes are brought to rest; neither sliding patterns nor the stick iteration found one
+    616: (
+        ModalModel(
+            b0=0.2246986214310774,
+            c=-0.9013106002893919,
+            omega=(0.8008758935650085, 1.0544778822462209, 2.7740287106729076),
+            zeta=(0.2783519094292859, 0.22677499819967586, 0.27026727518256366),
+            b=(0.7506085340950495, -1.7431951069171636, 1.2299365178020474),
+        ),
+        8.046276174214604,
+        2.909473700812145,
+        -788.857368190717,
+    ),
 }
 
 
