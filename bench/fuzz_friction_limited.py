@@ -394,7 +394,8 @@ def main() -> None:
 
     load = os.getloadavg()[0]
     print(
-        f"# fuzz seed {args.seed}, cases {args.first}..{args.first + args.cases - 1}, {RATE_HZ:g} Hz, guard {args.guard:g} s, "
+        f"# fuzz seed {args.seed}, cases "
+        f"{args.indices if args.indices else f'{args.first}..{args.first + args.cases - 1}'}, {RATE_HZ:g} Hz, guard {args.guard:g} s, "
         f"package {os.path.dirname(flexmotion_ros.__file__)}, load average {load:.2f} on {os.cpu_count()} CPUs"
     )
     pool = Guarded(args.guard)
