@@ -28,6 +28,7 @@ counted as a hang.
 
     python bench/fuzz_friction_limited.py --cases 1000 --seed 18
     python bench/fuzz_friction_limited.py --cases 200 --methods limited --guard 60
+    python bench/fuzz_friction_limited.py --methods time_optimal_friction --indices 28,492
 """
 
 from __future__ import annotations
@@ -377,6 +378,7 @@ def main() -> None:
     p.add_argument("--first", type=int, default=0, help="index of the first case")
     p.add_argument("--methods", default=",".join(METHODS), help="comma-separated subset of " + ", ".join(METHODS))
     p.add_argument("--guard", type=float, default=60.0, help="wall-clock guard per case (s)")
+    p.add_argument("--indices", default="", help="comma-separated case indices to run instead of --first/--cases")
     p.add_argument("--show", type=int, default=-1, help="print the reproducer of this case index and exit")
     p.add_argument("--verbose", action="store_true")
     args = p.parse_args()
@@ -392,7 +394,8 @@ def main() -> None:
 
     load = os.getloadavg()[0]
     print(
-        f"# fuzz seed {args.seed}, cases {args.first}..{args.first + args.cases - 1}, {RATE_HZ:g} Hz, guard {args.guard:g} s, "
+        f"# fuzz seed {args.seed}, cases "
+        f"{args.indices if args.indices else f'{args.first}..{args.first + args.cases - 1}'}, {RATE_HZ:g} Hz, guard {args.guard:g} s, "
         f"package {os.path.dirname(flexmotion_ros.__file__)}, load average {load:.2f} on {os.cpu_count()} CPUs"
     )
     pool = Guarded(args.guard)
@@ -400,7 +403,12 @@ def main() -> None:
     try:
         for m in methods:
             rows = []
-            for i in range(args.first, args.first + args.cases):
+            indices = (
+                [int(i) for i in args.indices.split(",") if i.strip()]
+                if args.indices
+                else range(args.first, args.first + args.cases)
+            )
+            for i in indices:
                 r = pool.run(m, args.seed, i)
                 rows.append(r)
                 if args.verbose or r["status"] in ("error", "hang") or r.get("check"):

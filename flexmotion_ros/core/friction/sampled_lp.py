@@ -21,6 +21,11 @@ sign rows, take the signs of the resulting velocity as the next pattern, until
 they agree (then the signed LP is solved once more, so the result is exactly
 consistent).  :func:`fastest_samples` searches the fewest samples at one rate.
 
+A pattern entry 0 holds the body by friction for that sample (stuck:
+``v = 0`` at both ends, ``|u_k| <= F``, no effect of ``u_k`` on the rigid
+body, the modes driven as ever): moves that must rest on the way while the
+modes are steered (:func:`consistent_pattern` with ``stick=True``).
+
 Nothing here is a proof of optimality: a pattern is a guess, and the LP is
 exact only for it.  Every sequence a planner returns is checked by the
 event-located friction simulation of :mod:`.contact`.
@@ -28,6 +33,7 @@ event-located friction simulation of :mod:`.contact`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +55,8 @@ LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
 SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
 MU_MAX = 1e12
+#: A stuck sample holds ``|u| <= STICK_MARGIN F``: inside the friction band, so rounding cannot make it slip.
+STICK_MARGIN = 1.0 - 1e-6
 #: Fixed-point iterations of the velocity-sign pattern.
 PATTERN_ROUNDS = 3
 
@@ -104,6 +112,10 @@ class FrictionLP:
         self.I = np.arange(model.n_states) if problem.include_position else np.arange(1, model.n_states)
         self._kd: dict[int, tuple] = {}
         self.solves = 0
+        #: LPs that had a solution (whatever its peak): none at all says the samples are too coarse.
+        self.feasible_solves = 0
+        #: Set by :func:`fastest_samples` when more samples stopped changing the least peak.
+        self.stalled = False
 
     def kdata(self, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(G, Hf, free, pw)``: effect of ``u_k`` and of unit friction on interval ``k`` on ``x_K``, the
@@ -123,12 +135,23 @@ class FrictionLP:
 
     def velocities(self, u: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Rigid-body velocity at instants ``0..K`` (the exact recursion, friction of pattern ``s``)."""
-        drive = self.gv * np.asarray(u, float) - (self.F * self.fv) * np.asarray(s, float)
+        s = np.asarray(s, float)
+        drive = self.gv * np.asarray(u, float) * (s != 0.0) - (self.F * self.fv) * s  # stuck (0): no drive
         v = np.empty(drive.size + 1)
         v[0] = self.x0[1]
         # v_{k+1} = ev v_k + drive_k: a first-order recursion (C loop), the initial value as its state
         v[1:] = lfilter([1.0], [1.0, -self.ev], drive, zi=[self.ev * v[0]])[0]
         return v
+
+    def stuck_rows(self, G: np.ndarray, stuck: np.ndarray) -> np.ndarray:
+        """``G`` with the rigid-body effect of the stuck samples removed (friction cancels the command
+        there; rigid body and modes are decoupled, so the modes keep theirs)."""
+        if not stuck.any():
+            return G
+        G = G.copy()
+        rigid = np.flatnonzero(self.I < 2)
+        G[np.ix_(np.flatnonzero(stuck), rigid)] = 0.0
+        return G
 
     def solve(
         self, K: int, s: np.ndarray, signs: bool = True, held: tuple[np.ndarray, np.ndarray] | None = None
@@ -147,6 +170,9 @@ class FrictionLP:
         G, Hf, free, pw = self.kdata(K)
         s = np.asarray(s, float)
         w = -free + self.F * (s @ Hf)
+        stuck = s == 0.0
+        G = self.stuck_rows(G, stuck)
+        moves = (~stuck).astype(float)  # a stuck sample does not drive the rigid body
         nI = G.shape[1]
         iz, iy, imu = 0, K, 2 * K + 1  # columns: z_0..z_{K-1}, y_0..y_K, mu
         nv = 2 * K + 2
@@ -169,10 +195,19 @@ class FrictionLP:
             [
                 np.column_stack([G.T, -w]).ravel(),
                 [1.0, -self.x0[1]],
-                np.column_stack([np.ones(K), np.full(K, -self.ev), np.full(K, -self.gv), self.F * self.fv * s]).ravel(),
+                np.column_stack([np.ones(K), np.full(K, -self.ev), -self.gv * moves, self.F * self.fv * s]).ravel(),
             ]
         )
         A_eq = coo_matrix((vals, (rows, cols)), shape=(nI + 1 + K, nv)).tocsr()
+        A_ub = b_ub = None
+        if stuck.any():  # held by friction: |u_k| <= F (a hair inside, so rounding cannot make it slip)
+            ks = np.flatnonzero(stuck)
+            n_s = ks.size
+            r2 = np.repeat(np.arange(2 * n_s), 2)
+            c2 = np.column_stack([np.concatenate([iz + ks, iz + ks]), np.full(2 * n_s, imu)]).ravel()
+            v2 = np.column_stack([np.repeat([1.0, -1.0], n_s), np.full(2 * n_s, -self.F * STICK_MARGIN)]).ravel()
+            A_ub = coo_matrix((v2, (r2, c2)), shape=(2 * n_s, nv)).tocsr()
+            b_ub = np.zeros(2 * n_s)
         lo = np.full(nv, -np.inf)
         hi = np.full(nv, np.inf)
         lo[iz : iz + K], hi[iz : iz + K] = -1.0, 1.0
@@ -180,24 +215,34 @@ class FrictionLP:
             mask, sigma = held
             lo[iz + np.flatnonzero(mask)] = hi[iz + np.flatnonzero(mask)] = np.asarray(sigma, float)[mask]
         lo[imu], hi[imu] = 0.0, MU_MAX
+        left, right = s[:-1], s[1:]
+        yj = iy + np.arange(1, K)
         if signs:  # s v_j >= 0 on both sides of every instant (v_j = 0 where the pattern changes sign)
-            left, right = s[:-1], s[1:]
-            yj = iy + np.arange(1, K)
             lo[yj] = np.where((left > 0) & (right > 0), 0.0, np.where((left < 0) & (right < 0), -np.inf, 0.0))
             hi[yj] = np.where((left < 0) & (right < 0), 0.0, np.where((left > 0) & (right > 0), np.inf, 0.0))
+        else:  # at rest on both ends of a stuck sample, whatever the signs
+            at_rest = (left == 0.0) | (right == 0.0)
+            lo[yj[at_rest]] = hi[yj[at_rest]] = 0.0
+        if K and stuck[-1]:
+            lo[iy + K] = hi[iy + K] = 0.0
         cost = np.zeros(nv)
         cost[imu] = -1.0
         self.solves += 1
         res = linprog(
             cost,
+            A_ub=A_ub,
+            b_ub=b_ub,
             A_eq=A_eq,
             b_eq=np.zeros(A_eq.shape[0]),
             bounds=np.column_stack([lo, hi]),
             method="highs-ds",
-            options=LP_OPTIONS,  # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep
+            # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep; the time limit grows
+            # with the size (a fine structure LP of 2,000 samples takes about 1 s on a loaded machine)
+            options={**LP_OPTIONS, "time_limit": LP_TIME_LIMIT_S * (1.0 + K / 500.0)},
         )
         if res.status != 0 or res.x[imu] <= 0.0:
             return None
+        self.feasible_solves += 1
         t = 1.0 / float(res.x[imu])
         u = res.x[iz : iz + K] * t
         return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w)
@@ -279,6 +324,7 @@ class FrictionLP:
         js = np.flatnonzero(np.abs(v[1:K]) <= 1e-7 * scale) + 1
         lag = js[:, None] - 1 - np.arange(K)[None, :]
         D = np.where(lag >= 0, self.gv * pw[np.maximum(lag, 0)], 0.0)  # v_j = a_j + D_j u
+        D[:, sol.pattern == 0.0] = 0.0  # a stuck sample does not move the rigid body
         G = np.column_stack([sol.G, D.T])
         w = np.concatenate([sol.w, -a[js]])
         return least_norm_correction(G, w, sol.u, self.problem.u_max)
@@ -295,7 +341,7 @@ class FrictionLP:
         return out
 
 
-def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
+def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = False) -> FrictionSolution | None:
     """A pattern consistent with its own least-peak move (fixed point from ``s0``), solved with sign rows.
 
     The fixed point moves reversals to where the move made with the previous
@@ -303,7 +349,14 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSoluti
     :data:`PATTERN_ROUNDS` the last pattern is used (the sign rows still make
     the result consistent).  Both the fixed point and ``s0`` itself are solved
     with sign rows; the smaller peak wins.
+
+    ``stick=True``: where the move would go backwards the body is held
+    instead (pattern 0: stuck, ``|u| <= F``), and every pattern of the
+    iteration is solved with sign rows (the smallest peak wins): for moves
+    that must rest on the way while the modes are steered.
     """
+    if stick:
+        return _stick_pattern(lp, K, s0)
     s = np.asarray(s0, float).copy()
     seen = []
     for _ in range(PATTERN_ROUNDS):
@@ -325,13 +378,48 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSoluti
     return best
 
 
+#: Rounds of the stick-instead-of-reverse iteration.
+STICK_ROUNDS = 5
+#: Periods of the slowest mode the body is held at the end of the first stuck candidate.
+STICK_TAIL_PERIODS = 4.0
+
+
+def _stick_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
+    direction = -1.0 if lp.x0[0] > 0.0 else 1.0  # lp.x0 is the start relative to the target
+    s = np.where(np.asarray(s0, float) == direction, direction, 0.0)
+    best, seen = None, []
+    omega = lp.problem.model.omega
+    if omega and K > 1:
+        # first candidate: slide forward, then hold the body for the last few periods of the slowest mode
+        # (the modes brought to rest by |u| <= F alone: a long damped move whose end game needs the body
+        # to wait; the iteration below rarely finds so long a rest)
+        n = min(K // 2, math.ceil(STICK_TAIL_PERIODS * 2.0 * math.pi / min(omega) / lp.dt))
+        tail = np.full(K, direction)
+        tail[K - n :] = 0.0
+        best = lp.solve(K, tail, signs=True)
+    for _ in range(STICK_ROUNDS):
+        signed = lp.solve(K, s, signs=True)
+        if signed is not None and (best is None or signed.t < best.t):
+            best = signed
+        sol = lp.solve(K, s, signs=False)
+        if sol is None:
+            break
+        v = lp.velocities(sol.u, s)
+        nxt = np.where(direction * (v[:-1] + v[1:]) > 0.0, direction, 0.0)
+        if any(np.array_equal(nxt, p) for p in seen + [s]):
+            break
+        seen.append(s)
+        s = nxt
+    return best
+
+
 def template_pattern(template, K: int) -> np.ndarray:
     """``template(tau)`` (velocity sign at normalised time ``tau`` in [0, 1]) on ``K`` intervals."""
     return np.asarray(template((np.arange(K) + 0.5) / K), float)
 
 
 def fastest_samples(
-    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None
+    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None, stick: bool = False
 ) -> FrictionSolution | None:
     """Fewest samples (searched, not proved) with least peak ``<= u_max``; patterns from ``template``.
 
@@ -341,7 +429,8 @@ def fastest_samples(
     not, then bisection.  Where the current pattern fails (the first probe,
     and one count below the count found) the pattern is iterated to
     consistency (:func:`consistent_pattern`); a better pattern restarts the
-    search down from there (a few rounds).
+    search down from there (a few rounds).  ``stick``: the fixed point holds
+    the body where it would go back (see :func:`consistent_pattern`).
     """
     um = lp.problem.u_max * (1.0 + 1e-12)
     K_max = K_max if K_max is not None else max(8 * K_guess, K_guess + 200)
@@ -363,7 +452,7 @@ def fastest_samples(
         return feasible(tried[K])
 
     def fixed_point(K: int) -> bool:
-        sol = consistent_pattern(lp, K, template_pattern(state["template"], K))
+        sol = consistent_pattern(lp, K, template_pattern(state["template"], K), stick)
         if not feasible(sol):
             return False
         tried[K] = sol
@@ -373,10 +462,20 @@ def fastest_samples(
     K = max(K_guess, K_min)
     step = max(1, K // 50)
     first = True
+    flat, last = 0, None
     while not ok(K):
-        if first and fixed_point(K):
+        if (first or stick) and fixed_point(K):
             break
         first = False
+        if tried[K] is not None and last is not None:
+            # more samples, the same least peak (three times): the end game cannot be resolved at this
+            # period (samples too long for the modes to be brought to rest), so no count will do;
+            # finer samples are the caller's move
+            flat = flat + 1 if abs(tried[K].t - last) <= 1e-6 * last else 0
+            if flat >= 3:
+                lp.stalled = True
+                return None
+        last = tried[K].t if tried[K] is not None else None
         if K >= K_max:
             return None
         K = min(K_max, K + step)

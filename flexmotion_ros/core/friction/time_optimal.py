@@ -19,7 +19,12 @@ from a starting point found in turn by
 2. the structure of the fewest-sample move at a coarse rate
    (:mod:`.sampled_lp`: between reversals the friction is a known force, so
    for a velocity-sign pattern the move is an LP; the pattern is iterated to
-   consistency), read off and polished (:mod:`.structure`).
+   consistency), read off and polished (:mod:`.structure`).  The first
+   sample period comes from the proved rigid-body bound (damped too); where
+   no sequence exists at a period, finer ones are tried (samples too long for
+   the modes to be brought to rest: long moves of a damped rigid body), and
+   where no sliding pattern reaches rest, patterns that hold the body by
+   friction on the way (``|u| <= F`` while the modes are steered).
 
 The result is checked by the exact friction simulation (rest at the target)
 and certified as a Pontryagin extremal (sign structure proved per costate
@@ -78,18 +83,54 @@ def rigid_friction_time(
 ) -> float | None:
     """Proved lower bound (s) on any rest-to-rest move under rigid-body friction, or None.
 
-    For ``c = 0`` from rest: while ``v > 0`` the acceleration lies in
-    ``[-a2, a1]`` (``a1 = |b0| (u_max - F)``, ``a2 = |b0| (u_max + F)``), so
-    ``v(t) <= min(a1 t, a2 (T - t))`` and the distance ``|gamma| <= T^2 a1 a2 / (2 (a1 + a2))``.
-    The modes add constraints only, so the full model is never faster.
+    From rest, while ``v > 0``: ``v' <= c v + a1`` and ``v' >= c v - a2``
+    (``a1 = |b0| (u_max - F)``, ``a2 = |b0| (u_max + F)``), so by comparison
+    ``v(t) <= min(w(t), z(t))`` with ``w`` the full-force rise from rest and
+    ``z`` the full-brake fall to rest at ``T`` (``c = 0``: ``min(a1 t, a2 (T - t))``;
+    ``c = -k < 0``: ``a1 (1 - e^{-k t}) / k`` and ``a2 (e^{k (T - t)} - 1) / k``).
+    The distance ``|gamma|`` is at most the integral of that envelope, which
+    increases with ``T``; the bound is the ``T`` where it equals ``|gamma|``.
+    Intervals with ``v <= 0`` only lose distance, and the modes add
+    constraints only, so the full model is never faster.
     """
     x0 = np.asarray(x0, float)
-    if target is None or model.c != 0.0 or np.any(x0[1:]):
+    if target is None or np.any(x0[1:]):
         return None
     gamma = abs(target - x0[0])
     a1 = abs(model.b0) * (u_max - coulomb_force)
     a2 = abs(model.b0) * (u_max + coulomb_force)
-    return math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+    if model.c == 0.0:
+        return math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))
+    if gamma == 0.0:
+        return 0.0
+    k = -float(model.c)
+
+    def reach(T: float) -> float:
+        # the envelope's crossing t*: a1 (1 - e^{-k t*}) = a2 (e^{k (T - t*)} - 1); r = T - t* (no overflow)
+        e = math.exp(-k * T)
+        r = math.log1p(-a1 * math.expm1(-k * T) / (a2 + a1 * e)) / k
+        return (a1 * _expm1_minus_x(-k * (T - r)) + a2 * _expm1_minus_x(k * r)) / (k * k)
+
+    hi = math.sqrt(2.0 * gamma * (a1 + a2) / (a1 * a2))  # the undamped bound: the damped one is longer
+    while reach(hi) < gamma:
+        hi *= 2.0
+    lo = 0.5 * hi if reach(0.5 * hi) < gamma else 0.0
+    for _ in range(200):  # bisection to rounding; the bound returned is the lower end (never too long)
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if reach(mid) < gamma:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _expm1_minus_x(x: float) -> float:
+    """``e^x - 1 - x`` without cancellation for small ``|x|``."""
+    if abs(x) < 1e-3:
+        return x * x * (0.5 + x * (1.0 / 6.0 + x / 24.0))
+    return math.expm1(x) - x
 
 
 @dataclass
@@ -137,6 +178,9 @@ class FrictionProfile:
     method: str = "time_optimal_friction"
     #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
     sample_period: float | None = None
+    #: An exact sampled move (``exact_sampled``) found on the way to an uncertified bang-bang one, or None:
+    #: the zero-order-hold planner falls back on it when no sequence near this move passes its check.
+    alternative: FrictionProfile | None = None
 
     @property
     def certified(self) -> bool:
@@ -237,6 +281,8 @@ def plan_time_optimal_friction(
     def monotone(tau):
         return np.full(np.shape(tau), direction)
 
+    reverses = bool(np.any(template(np.linspace(0.0, 1.0, 257)) != direction))
+
     best: FrictionProfile | None = None
     # 1. the fast path: continuation in F from the frictionless optimum (bounded)
     cont = continue_in_friction(problem, base, F, scale)
@@ -250,34 +296,61 @@ def plan_time_optimal_friction(
     #    velocity-sign piece, the pattern iterated to consistency), polished by Newton
     # the first count guessed from the rigid body's slow-down under friction (c = 0 from rest)
     rigid0 = rigid_friction_time(model, problem.u_max, 0.0, problem.x0, problem.target)
-    T_ref, sampled = base.duration * (lb / rigid0 if lb and rigid0 else 1.0), None
+    T_first = base.duration * (lb / rigid0 if lb and rigid0 else 1.0)
+    T_ref, sampled, finer = T_first, None, STRUCTURE_FINER
     for K_c in STRUCTURE_SAMPLES:
-        sol = None
-        for _ in range(3):  # a move much slower than the frictionless one: coarser samples
+        sol, stalled = None, False
+        for _ in range(2):  # a move much slower than the frictionless one: coarser samples
             dt_c = T_ref / K_c
             if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
                 dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
             lp = FrictionLP(problem, F, dt_c)
             sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
-            if sol is None:  # the frictionless move's reversals may not suit: a monotone move
+            if sol is None and reverses:  # the frictionless move's reversals may not suit: a monotone move
                 sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
-            if sol is not None:
-                break
+            stalled = stalled or lp.stalled
+            if sol is not None or not lp.feasible_solves or lp.stalled:
+                break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
             T_ref *= 4.0
+        if sol is None and not stalled:
+            # no sliding pattern reaches rest (every sample moving forward or back): a move that rests on
+            # the way, the body held by friction (|u| <= F) while the modes are steered, never moving back
+            # (not where the samples are too long to bring the modes to rest: finer ones are tried first)
+            dt_c = T_first / K_c
+            if rate_hz:
+                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+            lp = FrictionLP(problem, F, dt_c)
+            sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True)
         if sol is None:
-            break
+            # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
+            # a long damped move with fast modes): finer samples over the same time
+            T_ref = T_first
+            continue
+        if has_stick_arcs(sol.u, F, sol.t) or np.any(sol.pattern == 0.0):
+            # the body rests for a while (|u| <= F holds it while the modes are steered): no bang-bang
+            # extremal of the sliding system describes that; the sampled move is the answer if it passes
+            # the exact check, else finer samples are tried (an exact bang-bang move found before wins)
+            if best is not None:
+                sampled = (lp, sol)
+                break
+            prof = _sampled_profile(lp, sol, base, lb, steps, t0)
+            if prof is not None:
+                return prof
+            T_ref = T_first
+            continue
         sampled = (lp, sol)
         T_ref = sol.K * lp.dt
-        if has_stick_arcs(sol.u, F, sol.t):
-            # the body rests for a while (|u| = F holds it while the modes are steered): no bang-bang
-            # extremal of the sliding system describes that; the sampled move is the answer
-            break
         got = extremal_from_samples(problem, sol.u, lp.dt, F, scale, sol.t, [STRUCTURE_EVALS])
         if got is not None:
             best = _better(best, _try_assemble(*got, base, lb, steps, t0))
             if best is not None and best.certified:
                 return best
+        finer -= 1
+        if finer < 0:
+            break
     if best is not None:
+        if sampled is not None:
+            best.alternative = _sampled_profile(*sampled, base, lb, steps, t0)
         return best  # exact, not a proved extremal: the certificate says which condition failed
     if sampled is not None:
         prof = _sampled_profile(*sampled, base, lb, steps, t0)
@@ -289,8 +362,11 @@ def plan_time_optimal_friction(
     )
 
 
-#: Samples of the coarse sampled moves the structure is read from, coarsest first.
-STRUCTURE_SAMPLES = (64, 192)
+#: Samples of the coarse sampled moves the structure is read from, coarsest first; the finer ones are
+#: tried when a coarser one has no sequence (or, up to ``STRUCTURE_FINER`` times, gave no extremal).
+STRUCTURE_SAMPLES = (64, 192, 576, 1728)
+#: Finer sampled moves tried after the first one found (its structure gave no certified extremal).
+STRUCTURE_FINER = 1
 #: Residual evaluations (exact friction runs) Newton may spend on the structure of one sampled move.
 STRUCTURE_EVALS = 60
 
@@ -332,13 +408,11 @@ def _try_assemble(ext, y, base, lb, steps, t0) -> FrictionProfile | None:
         return None  # missed the target in the exact check: not a move
 
 
-def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile | None:
-    """The fewest-sample move itself (piecewise constant, exact after correction), or None if it misses."""
+def _check_sampled(lp: FrictionLP, u: np.ndarray):
+    """``(u, x(T), run, relative error, deviation)`` if the sequence rests at the target in the exact
+    event-located friction simulation (and stays there), else None."""
     problem = lp.problem
-    u = lp.exact_commands(sol)
-    if u is None:
-        return None
-    dt, K = lp.dt, sol.u.size
+    dt, K = lp.dt, u.size
     T = K * dt
     check = FrictionSystem.for_model(problem.model, lp.F)
     pc = PiecewiseConstant.from_samples(u, dt)
@@ -352,6 +426,27 @@ def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int,
     drift = float(np.max(np.abs((x_after - xT)[I]) / sc[I]))
     if not (rel <= FINAL_STATE_RTOL and drift <= FINAL_STATE_RTOL and np.max(np.abs(u)) <= problem.u_max):
         return None
+    return u, xT, run, rel, dev
+
+
+def _sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, t0: float) -> FrictionProfile | None:
+    """The fewest-sample move itself (piecewise constant, exact after correction), or None if it misses.
+
+    The corrected commands are checked first, then the LP's own (a correction can move a command held
+    inside the friction band past it, so that the body slips where the LP has it stuck)."""
+    problem = lp.problem
+    corrected = lp.exact_commands(sol)
+    raw = np.clip(sol.u, -problem.u_max, problem.u_max)
+    for u in (corrected, raw):
+        if u is not None:
+            checked = _check_sampled(lp, u)
+            if checked is not None:
+                break
+    else:
+        return None
+    u, xT, run, rel, dev = checked
+    dt, K = lp.dt, sol.u.size
+    T = K * dt
     cert = FrictionCertificate(
         passed=False,
         switch_residual=math.inf,

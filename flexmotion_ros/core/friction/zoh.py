@@ -213,25 +213,36 @@ def plan_time_optimal_friction_zoh(
         states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states
         found[u.size] = (u, states)
         K0 = u.size
-    # up from ceil(T / dt) in growing steps, then back down by bisection to the fewest that works
-    K, step, below = K0, 1, K0 - 1
-    while attempt(K) is None:
-        below = K
-        if K >= K_cap:
-            raise SolverError(
-                f"sampled friction planner: no sequence up to {K_cap} samples ({MAX_FACTOR} x the continuous move) "
-                f"passes the exact check ({reasons[-1] if reasons else 'no feasible linear program'})"
-            )
-        K = min(K_cap, K + step)
-        step *= 2
-    hi = K
-    while hi - below > 1:
-        mid = (below + hi) // 2
-        if attempt(mid) is not None:
-            hi = mid
-        else:
-            below = mid
-    u, states = found[hi]
+    try:
+        # up from ceil(T / dt) in growing steps, then back down by bisection to the fewest that works
+        K, step, below = K0, 1, K0 - 1
+        while attempt(K) is None:
+            below = K
+            if K >= K_cap:
+                raise SolverError(
+                    f"sampled friction planner: no sequence up to {K_cap} samples ({MAX_FACTOR} x the continuous move) "
+                    f"passes the exact check ({reasons[-1] if reasons else 'no feasible linear program'})"
+                )
+            K = min(K_cap, K + step)
+            step *= 2
+        hi = K
+        while hi - below > 1:
+            mid = (below + hi) // 2
+            if attempt(mid) is not None:
+                hi = mid
+            else:
+                below = mid
+        u, states = found[hi]
+    except SolverError:
+        # no sequence near the continuous move (its velocity pattern does not survive the sampling, or the
+        # budget ran out): the exact sampled move found on the way, if there is one, each command held a
+        # whole number of periods (checked below like any other)
+        alt = continuous.alternative
+        u = _held_samples(alt, dt) if alt is not None else None
+        if u is None:
+            raise
+        states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states
+        hi = u.size
     extra = {"coulomb_force": F, "peak_command": float(np.max(np.abs(u))), "extra_samples": hi - K0}
     return verified_samples(  # the one exact sampled check, with the friction simulation injected
         move,

@@ -168,3 +168,33 @@ def test_bang_bang_guess_keeps_the_mean_force_of_every_sample(seed):
     fine = np.linspace(0.0, T, 40 * 4000, endpoint=False) + T / (2 * 40 * 4000)
     means = pc(fine).reshape(40, 4000).mean(axis=1)
     assert np.allclose(means, u, atol=2e-3)
+
+
+def test_stuck_samples_hold_the_body_and_the_move_rests_exactly():
+    """Fuzz case 492 of issue 18 (two close slow modes, F = 0.5 u_max, c < 0): no sliding pattern reaches
+    rest; with stuck samples (pattern 0: |u| <= F, the body held by friction) the search finds a move.
+    The exact event-located simulation (sticking included) confirms what the LP assumed: the body does
+    not move on the stuck samples, never moves back, and rests at the target at the end and after."""
+    m = ModalModel(
+        b0=0.13422842892094394,
+        c=-0.70400694826743,
+        omega=(0.7721549463467025, 0.7923167284232879, 29.701533690589205),
+        zeta=(0.26457178493966277, 0.27920761139920636, 0.0752186001428152),
+        b=(0.39211715189292795, -0.9704074569056195, -0.5598962490544935),
+    )
+    u_max, F, goal = 0.7454725539854661, 0.36988037191729395, 0.3668231174880086
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    dt = 0.11
+    lp = FrictionLP(problem, F, dt)
+    assert fastest_samples(lp, lambda tau: np.ones(np.shape(tau)), 64, K_max=256) is None  # sliding only
+    sol = fastest_samples(lp, lambda tau: np.ones(np.shape(tau)), 64, K_max=256, stick=True)
+    assert sol is not None and sol.t <= u_max
+    stuck = sol.pattern == 0.0
+    assert stuck.any() and np.all(np.abs(sol.u[stuck]) <= F)
+    K = sol.K
+    x = simulate_coulomb(m, problem.x0, PiecewiseConstant.from_samples(sol.u, dt), F, dt * np.arange(K + 1))
+    assert np.all(np.diff(x[:, 0]) >= -1e-12)  # never back
+    held = np.flatnonzero(stuck)
+    assert np.max(np.abs(x[held + 1, 0] - x[held, 0])) < 1e-12 and np.max(np.abs(x[held + 1, 1])) < 1e-12
+    end = simulate_coulomb(m, problem.x0, PiecewiseConstant.from_samples(sol.u, dt), F, [K * dt, K * dt + 30.0])
+    assert np.max(np.abs(end - m.rest_state(goal))) < 1e-9
