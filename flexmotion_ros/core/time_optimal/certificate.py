@@ -188,10 +188,14 @@ def _certify_with(
         for k in narrow:  # interval k lies between tau_sw[k - 1] and tau_sw[k]: drop the proved zeros there
             lo = tau_sw[k - 1] if k > 0 else -1.0
             hi = tau_sw[k] if k < tau_sw.size else np.inf
-            near = (zeros_tau >= lo - tol.max(initial=0.0)) & (zeros_tau <= hi + tol.max(initial=0.0))
-            if k == 0 and np.any(near & keep):
-                sign0 = sign0 * (-1.0) ** int(np.count_nonzero(near & keep))
-            keep &= ~near
+            near = np.flatnonzero(
+                keep & (zeros_tau >= lo - tol.max(initial=0.0)) & (zeros_tau <= hi + tol.max(initial=0.0))
+            )
+            if k == 0:  # at the end: the sign there is the one after them
+                sign0 = sign0 * (-1.0) ** near.size
+            elif k < tau_sw.size and near.size % 2:  # inside: an odd count is one sign change and merged pairs
+                near = np.delete(near, near.size // 2)
+            keep[near] = False
         zeros_tau = zeros_tau[keep]
     end_unresolved = gap_end > GAP_RTOL * T
     if end_unresolved:
