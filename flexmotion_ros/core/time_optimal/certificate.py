@@ -263,7 +263,7 @@ def end_gap(
     ``u_max int_0^{T - T'} |S(tau)| dtau <= nu^T x(T)`` (time-to-go ``tau``),
     from ``lambda(T)^T (x(T) - x'(T)) = int_0^T B^T lambda (u - u') dt``.
     ``nu^T x(T)`` is bounded by its computed value plus the simulation's
-    rounding; the integral from below by a lower Riemann sum of ``|S|`` on a
+    rounding (``4 eps`` per simulated piece and state, times ``|nu_i| max |x_i|``); the integral from below by a lower Riemann sum of ``|S|`` on a
     geometric grid refined by the certificate's sample grid (cells with a
     sign change or a proved zero count 0).
 
@@ -275,7 +275,7 @@ def end_gap(
     x = np.asarray(states_at_breaks, float)
     nu = np.asarray(nu, float)
     eps = np.finfo(float).eps
-    budget = abs(float(nu @ x[-1])) + 64.0 * eps * x.shape[0] * float(np.abs(nu) @ np.max(np.abs(x), axis=0))
+    budget = abs(float(nu @ x[-1])) + 4.0 * eps * x.shape[0] * float(np.abs(nu) @ np.max(np.abs(x), axis=0))
     if not budget > 0.0:
         return 0.0
     roots = np.asarray(roots_tau, float)
