@@ -46,6 +46,10 @@ from ..tolerances import (
 from .costate_lp import widest_costate
 from .switching import isolate_roots, root_tolerance, sample_grid
 
+#: Rounding of ``S`` in units of ``eps`` times the sum of its terms' magnitudes
+#: (:meth:`switching_magnitude`): a sign margin at or below it is not a proof.
+SIGN_ROUNDING = 16.0
+
 
 def certify(
     system,
@@ -59,13 +63,14 @@ def certify(
 ) -> Certificate:
     """Certify a bang-bang profile against Pontryagin's conditions.
 
-    If ``nu`` leaves the end of the move unproved (check 5), the co-state of
+    If ``nu`` leaves the end of the move unproved (check 5) or its sign
+    margin is below the switching function's rounding, the co-state of
     the same profile with the widest sign margin
     (:func:`~.costate_lp.widest_costate`) is certified instead, when it passes:
     any co-state that passes every check is a proof.
     """
     cert = _certify_with(system, nu, T, u_max, switch_times, levels, states_at_breaks, lower_bound)
-    if cert.status is CertificateStatus.OPTIMAL or not cert.details["end_gap"] > GAP_RTOL * T:
+    if cert.status is CertificateStatus.OPTIMAL or not cert.details["weak_costate"]:
         return cert
     other = widest_costate(system, T, np.asarray(switch_times, float), np.asarray(levels, float))
     if other is None:
@@ -215,6 +220,11 @@ def _certify_with(
         reasons.append(f"{unproved} grid cell(s) could not be proved zero-free or monotone")
     if not sign_ok:
         reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
+    # a sign test below what S can be evaluated to (rounding of its terms) proves nothing
+    resolution = SIGN_ROUNDING * np.finfo(float).eps * system.switching_magnitude(nu, T)[0] / s_max
+    below_rounding = sign_ok and min_margin <= resolution
+    if below_rounding:
+        reasons.append(f"sign margin {min_margin:.1e} below the switching function's rounding {resolution:.1e}")
     if not ham_spread <= HAMILTONIAN_TOL:
         reasons.append(f"Hamiltonian not constant zero (max |H| = {ham_max:.2e}, relative spread {ham_spread:.2e})")
     passed = not reasons
@@ -247,7 +257,13 @@ def _certify_with(
         lower_bound=lower_bound,
         # the proved sign changes of S (time-to-go, s): a failed candidate's
         # structure can be corrected from them (fast path of the planner)
-        details={"zeros_tau": zeros_tau, "sign0": sign0, "end_gap": gap_end},
+        details={
+            "zeros_tau": zeros_tau,
+            "sign0": sign0,
+            "end_gap": gap_end,
+            # the co-state, not the profile, may be what failed: another one of the same profile may pass
+            "weak_costate": bool(end_unresolved or below_rounding),
+        },
         within_gap=within_gap,
     )
 
