@@ -279,9 +279,12 @@ def end_gap(
     ``u_max int_0^{T - T'} |S(tau)| dtau <= nu^T x(T)`` (time-to-go ``tau``),
     from ``lambda(T)^T (x(T) - x'(T)) = int_0^T B^T lambda (u - u') dt``.
     ``nu^T x(T)`` is bounded by its computed value plus the simulation's
-    rounding (``4 eps`` per simulated piece and state, times ``|nu_i| max |x_i|``); the integral from below by a lower Riemann sum of ``|S|`` on a
+    rounding (``4 eps`` per simulated piece and state, times ``|nu_i| max
+    |x_i|``); the integral from below by a lower Riemann sum of ``|S|`` on a
     geometric grid refined by the certificate's sample grid (cells with a
-    sign change or a proved zero count 0).
+    sign change or a proved zero count 0).  A last switch within ~1e-7 of
+    ``T`` (``S(0) ~ 0``) leaves about 1e-7 of ``T`` unproved: the optimal
+    time is that ill-conditioned there.
 
     Returns
     -------
