@@ -25,9 +25,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.linalg import null_space
 
 from flexmotion_ros.core import ModalModel, plan_time_optimal, state_to_rest
 from flexmotion_ros.core.results import CertificateStatus
+from flexmotion_ros.core.simulation.exact import PiecewiseConstant, simulate
+from flexmotion_ros.core.simulation.prepared import prepare
+from flexmotion_ros.core.time_optimal.certificate import certify
 from flexmotion_ros.core.tolerances import FINAL_STATE_RTOL
 
 CASES = [
@@ -130,3 +134,27 @@ def test_the_cold_planner_answers_with_the_optimum_not_a_blip(model, u_max, x0, 
     widths = np.diff(np.concatenate([[0.0], profile.switch_times, [profile.duration]]))
     assert np.min(widths) > 1e-6 * profile.duration  # no interval the times cannot resolve
     assert cert.min_margin > 1e-4
+
+
+def test_the_certificate_does_not_pass_the_old_blip():
+    # seed42's old cold answer: the optimum's 2 switches plus one 3.3e-8 s before T, 6.3e-8 (relative)
+    # longer than the optimum; with 1 mode (4 states) and 3 switches its co-state is unique (up to scale):
+    # S = 0 at the 3 switches.  The old certificate passed it ("ok", margin 2.2e-8).
+    model, u_max, x0, target = CASES[2].values[:4]
+    problem = state_to_rest(model, u_max, np.array(x0), target)
+    T = 1.0493892007011083
+    switch_times = np.array([0.27036366154027447, 0.7837026610446518, 1.0493891675695237])
+    levels = u_max * np.array([-1.0, 1.0, -1.0, 1.0])
+    move = prepare(problem)
+    system = move.response
+    eye = np.eye(system.n)
+    rows = np.stack([system.switching(eye[i], T - switch_times) for i in range(system.n)], axis=1)
+    nu = null_space(rows)[:, 0]
+    if np.sign(system.switching(nu, np.array([T - 0.5 * switch_times[0]]))[0]) != np.sign(levels[0]):
+        nu = -nu
+    u = PiecewiseConstant.from_switches(switch_times, levels, T)
+    states = simulate((system.A(), system.B()), problem.shifted_initial(), u)
+    assert np.max(np.abs(states[-1])) <= 1e-9  # it does reach the target: only the proof is at stake
+    cert = certify(system, nu, T, u_max, switch_times, levels, states)
+    assert cert.status is not CertificateStatus.OPTIMAL, cert.message
+    assert not cert.passed or cert.lower_bound <= 1.0493891344379382  # never a bound above the true optimum
