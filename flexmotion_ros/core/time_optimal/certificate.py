@@ -238,7 +238,7 @@ def _certify_with(
     elif end_unresolved and len(reasons) == 1 and gap_end <= END_GAP_RTOL * T:
         # every sign test holds; only the end is ill-conditioned: optimal to the gap that is proved
         passed = within_gap = True
-        lower_bound = max(T - gap_end, lower_bound if lower_bound is not None else 0.0)
+        lower_bound = float(max(T - gap_end, lower_bound if lower_bound is not None else 0.0))
         reasons = [
             f"optimal within {gap_end:.1e} s: the proved lower bound is {lower_bound!r} s "
             f"(the switching function near the end, against the final-state error)"
