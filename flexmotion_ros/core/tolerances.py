@@ -45,6 +45,15 @@ SWITCH_TIME_RTOL = 1e-9
 GAP_RTOL = 1e-8
 
 
+#: Where the switching function is tiny at the end of the move (a last switch
+#: within 1e-7 of ``T``, ``S(0) ~ 0``), the optimal time itself is that
+#: ill-conditioned: a final-state error of 1e-14 (relative) leaves ``T`` proved
+#: only to about 1e-7 (``certificate.end_gap``).  Such a profile is certified
+#: ``within_gap`` with the lower bound ``T - end_gap`` that the duality identity
+#: proves, if that gap is below this (relative); above it, it is not certified.
+END_GAP_RTOL = 1e-6
+
+
 HAMILTONIAN_TOL = 1e-6
 
 

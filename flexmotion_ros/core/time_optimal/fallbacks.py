@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import SolverError
 from ..results import BangBangProfile, CertificateStatus, SolverPath
 from ..tolerances import GAP_RTOL
+from .costate_lp import widest_costate
 from .reachable_set import Shooting
 from .rigid_body import rigid_profile
 from .switch_newton import primal_newton, refine_switches, split_candidates
@@ -194,3 +195,38 @@ def structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, ass
     profile = replace(best, certificate=cert)
     profile.extra["solver_path"] = SolverPath.SEARCH
     return profile
+
+
+def end_blip_fallback(problem, system, sh, profile, t0, T_low, assemble) -> BangBangProfile | None:
+    """The structure without an unresolved blip of switches, when the certificate could not prove it.
+
+    A co-state iteration can end on the optimum's switches plus a blip a few
+    microseconds before ``T`` where the switching function is far below what
+    the final-state error can resolve (the certificate's ``end_gap``): a
+    longer move than the optimum, not proved.  The certificate reports the
+    proved sign changes without that cluster (``details["zeros_tau"]``,
+    ``"sign0"``; also without intervals narrower than the switch times
+    resolve); the final-state Newton (:func:`primal_newton`) solves that
+    structure, and the result is returned only if it is certified
+    ``OPTIMAL`` with the co-state of widest margin (:func:`~.costate_lp.widest_costate`) and not longer.
+    """
+    cert = profile.certificate
+    roots, sign0 = cert.details.get("zeros_tau"), float(cert.details.get("sign0", 0.0))
+    T = profile.duration
+    if roots is None or not sign0 or roots.size >= profile.switch_times.size:
+        return None  # nothing dropped: not a blip
+    ok, tau, T_c, _ = primal_newton(sh, np.asarray(roots, float), sign0, T)
+    if not ok or not T_c <= T * (1.0 + GAP_RTOL):  # a certified extremal is the optimum; rounding aside
+        return None
+    signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+    nu = widest_costate(system, T_c, np.sort(T_c - tau), problem.u_max * signs[::-1])
+    if nu is None:
+        return None
+    try:
+        better = assemble(problem, system, nu, T_c, tau, signs, t0, sh.evaluations, T_low)
+    except SolverError:
+        return None
+    if better.certificate.status is not CertificateStatus.OPTIMAL:
+        return None
+    better.extra["solver_path"] = SolverPath.SEARCH
+    return better

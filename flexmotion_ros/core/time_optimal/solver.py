@@ -54,7 +54,7 @@ from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
 from .certificate import certify
-from .fallbacks import cluster_fallback, structure_fallback
+from .fallbacks import cluster_fallback, end_blip_fallback, structure_fallback
 from .lean import MAX_MODES as LEAN_MAX_MODES
 from .lean import MAX_POINTS as LEAN_MAX_POINTS
 from .lean import LeanMove, smoothed_guess, structure_from_samples
@@ -390,6 +390,8 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
                     f"tolerance {FINAL_STATE_RTOL:.0e}); nothing is returned"
                 ) from miss
             raise
+    if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
+        profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, _assemble) or profile
     profile.extra.setdefault("solver_path", SolverPath.FULL)
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
