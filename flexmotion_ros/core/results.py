@@ -77,7 +77,10 @@ class CertificateStatus(_StrEnum):
     OPTIMAL = "optimal"
     #: The sign test could not decide, but the duration is within
     #: :data:`~flexmotion_ros.core.tolerances.GAP_RTOL` (relative) of a proved
-    #: lower bound on the optimal time (s): optimal to that gap.
+    #: lower bound on the optimal time (s): optimal to that gap.  Also a profile
+    #: whose every check passed but whose end an exact arrival could undercut by
+    #: at most :data:`~flexmotion_ros.core.tolerances.END_GAP_RTOL` of ``T``
+    #: (the certificate's ``end_gap``): the lower bound is then ``T - end_gap``.
     WITHIN_GAP = "within_gap"
     #: The checks failed: optimality is not proved.
     FAILED = "failed"
