@@ -293,7 +293,7 @@ def replan(
     min_deviation: float = MIN_DEVIATION,
     gate_probability: float = GATE_PROBABILITY,
     planner: Callable[..., PlanResult] = plan_move,
-    warm_start: bool = True,
+    warm_start: bool = False,
     gentle: bool = False,
 ) -> ReplanOutcome:
     """Decide whether to replan from the estimate, and plan if so (module docstring).
@@ -316,7 +316,11 @@ def replan(
         with a warm start, called ``planner(config, problem, rate_hz, warm_start=...)``.
     warm_start : bool
         Pass the rest of the plan being executed at the splice as the
-        planner's warm start (:func:`warm_start_at`), if there is one.
+        planner's warm start (:func:`warm_start_at`), if there is one.  Off
+        by default (the node's choice too): the same optimum, but on a quiet
+        machine the warm replan's median was 0.90-0.93x the cold one for one
+        mode and 0.99-1.31x for two and three (``bench/replan_latency.py``,
+        two seeds): a failed warm attempt costs more than a hit saves.
     gentle : bool
         After arrival (the timeline sends nothing but holds from the splice
         on), plan the correction at :func:`correction_bound` (at most

@@ -215,7 +215,7 @@ class FeedbackGlue:
             covariance=est.P,
             move_size=getattr(self, "_fb_move_size", None),
             min_deviation=self._fb.min_deviation,
-            # the plan being executed at the splice is the planner's warm start (replan passes it as warm_start=)
+            # replan(warm_start=True) would pass the plan being executed as the planner's warm start: off (replan.py)
             planner=lambda c, problem, rate, **warm: self._planner_for(problem)(c, problem, rate, **warm),
         )
         self._fb_last = f"{out.status.value}: {out.reason}"

@@ -164,7 +164,9 @@ def test_the_plan_being_executed_is_the_warm_start_and_a_failed_one_falls_back(f
         seen.append(kwargs.get("warm_start"))
         return plan_move(config, problem, rate_hz, **kwargs)
 
-    warm = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, planner=spy, gentle=False)
+    warm = replan(
+        [seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, planner=spy, gentle=False, warm_start=True
+    )
     cold = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, warm_start=False, gentle=False)
     assert seen and seen[0] is not None
     assert warm.status is cold.status is ReplanStatus.REPLANNED
@@ -173,6 +175,6 @@ def test_the_plan_being_executed_is_the_warm_start_and_a_failed_one_falls_back(f
     # a guess that leads nowhere (the rest of another move): the cold optimum all the same
     other = plan_move(CFG, state_to_rest(WB, 1.0, WB.rest_state(0.0), -3.0 * GOAL), RATE)
     seg.info = other
-    wrong = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, gentle=False)
+    wrong = replan([seg], START + 20, 1, x, START + 20, config=CFG, target=GOAL, gentle=False, warm_start=True)
     assert wrong.status is ReplanStatus.REPLANNED
     assert abs(wrong.result.continuous.duration - cold.result.continuous.duration) <= 1e-9
