@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     plant_params.update({"rate_hz": rate, "lockstep": not args.realtime})
     if args.omega_scale:
         plant_params["plant.omega_scale"] = [float(s) for s in args.omega_scale]
-    from ..nodes.parameters import (
+    from ..nodes.plant_parameters import (
         plant_config_from_parameters,  # validates the model error too
     )
 

@@ -127,20 +127,13 @@ from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
 from . import messages, multi_axis
 from .measured_state import StateListener
-from .parameters import (
-    PLANNER_NODE_ONLY,
-    declare,
-    declare_method_options,
-    declared_values,
-    planner_config,
-    planner_specs,
-    validating_callback,
-)
+from .parameters import declare, declare_method_options, declared_values, validating_callback
 from .planner_feedback import FeedbackGlue
 from .planner_goals import GoalHandling
 from .planner_identify import IdentifyHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_output import OutputGlue, check_output
+from .planner_parameters import PLANNER_NODE_ONLY, planner_config, planner_specs
 from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .planner_stops import StopHandling
 from .planner_stream import StreamGlue

@@ -42,7 +42,7 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-from .parameters import PlantConfig
+from .plant_parameters import PlantConfig
 
 #: ``measurements``: reliable and deep (10 s at 1 kHz), so a recorder or a Kalman filter that lags a burst of a
 #: lockstep plant still gets every sample (with the spec's depth 100 a 300-command burst lost readings once in six).

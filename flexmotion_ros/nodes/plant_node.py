@@ -68,16 +68,10 @@ from ..core.multi_input.dispatch import mode_names, positions_text, rest_state, 
 from ..core.multi_input.exact import step_matrices as multi_step_matrices
 from ..core.simulation.exact import PiecewiseConstant, step_matrices
 from . import messages
-from .parameters import (
-    PlantConfig,
-    declare,
-    declared_values,
-    plant_config_from_parameters,
-    plant_specs,
-    validating_callback,
-)
+from .parameters import declare, declared_values, validating_callback
 from .plant_actuator import ActuatorGlue
 from .plant_measurements import MeasurementPublisher, stamp_from_ns
+from .plant_parameters import PlantConfig, plant_config_from_parameters, plant_specs
 from .runner import run
 
 NODE_NAME = "flexmotion_plant"

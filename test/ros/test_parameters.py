@@ -14,9 +14,11 @@ from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 
 from flexmotion_ros.core.config import load_config, read_parameter_file, read_parameter_sections
 from flexmotion_ros.core.errors import ConfigError, FlexmotionError
-from flexmotion_ros.nodes.parameters import option_specs, parameter_overrides, planner_specs, plant_specs
+from flexmotion_ros.nodes.parameters import option_specs, parameter_overrides
 from flexmotion_ros.nodes.planner_node import PlannerNode
+from flexmotion_ros.nodes.planner_parameters import planner_specs
 from flexmotion_ros.nodes.plant_node import PlantNode
+from flexmotion_ros.nodes.plant_parameters import plant_specs
 
 from .conftest import NAMESPACE
 
