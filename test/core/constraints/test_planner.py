@@ -30,8 +30,10 @@ from flexmotion_ros.core import (
     simulate_samples,
     state_to_rest,
 )
+from flexmotion_ros.core.constraints import level as limit_level
 from flexmotion_ros.core.constraints import lp as limit_lp
 from flexmotion_ros.core.constraints import planner as limits_mod
+from flexmotion_ros.core.constraints import proof as limit_proof
 from flexmotion_ros.core.constraints.limits import Limits, deflection_peaks
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
 from flexmotion_ros.core.errors import FlexmotionError, GoalError, SolverError
@@ -188,7 +190,7 @@ def test_coarse_levels_windows_and_lifted_proofs(name, limits):
     check_every_limit(problem, r, limits)
     K = r.sampled.samples
     assert r.minimal and r.lower_bound_samples == K
-    assert r.extra["lower_bound_proof"].startswith((limits_mod.PROOF_DUAL, limits_mod.PROOF_HIGHS))
+    assert r.extra["lower_bound_proof"].startswith((limit_proof.PROOF_DUAL, limit_proof.PROOF_HIGHS))
     assert not feasible_state_space(problem, K - 1, dt, limits)
     assert feasible_state_space(problem, K, dt, limits)
 
@@ -197,7 +199,7 @@ def test_coarse_levels_windows_and_lifted_proofs(name, limits):
 def test_last_resort_proof_is_the_full_feasibility_lp(monkeypatch, ipm_samples, method):
     """With every dual bound refused, the proof falls to HiGHS's verdict on the full LP, confirmed by
     the independent state-space formulation; the proof names both."""
-    monkeypatch.setattr(limits_mod, "proves_infeasible", lambda bound: False)
+    monkeypatch.setattr(limit_level, "proves_infeasible", lambda bound: False)
     monkeypatch.setattr(limit_lp, "IPM_SAMPLES", ipm_samples)
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
@@ -206,7 +208,7 @@ def test_last_resort_proof_is_the_full_feasibility_lp(monkeypatch, ipm_samples, 
     K = r.sampled.samples
     assert r.minimal
     assert r.extra["lower_bound_proof"] == (
-        f"{limits_mod.PROOF_HIGHS} ({method}, confirmed by an independent state-space LP (highs-ipm))"
+        f"{limit_proof.PROOF_HIGHS} ({method}, confirmed by an independent state-space LP (highs-ipm))"
     )
     assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits)
 
@@ -214,15 +216,15 @@ def test_last_resort_proof_is_the_full_feasibility_lp(monkeypatch, ipm_samples, 
 def test_an_unconfirmed_infeasible_verdict_proves_nothing(monkeypatch):
     """If the independent formulation does not confirm HiGHS's "infeasible", K - 1 is not claimed
     impossible: the plan is returned, not proved fewest, and says so."""
-    monkeypatch.setattr(limits_mod, "proves_infeasible", lambda bound: False)
-    monkeypatch.setattr(limits_mod, "independent_feasible", lambda *a, **k: (None, "no verdict"))
+    monkeypatch.setattr(limit_level, "proves_infeasible", lambda bound: False)
+    monkeypatch.setattr(limit_level, "independent_feasible", lambda *a, **k: (None, "no verdict"))
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
     limits = Limits(deflection_max=(0.2,))
     r = plan_limited_zoh(problem, rate, limits, plan_time_optimal_zoh(problem, rate))
     check_every_limit(problem, r, limits)
     assert not r.minimal and r.lower_bound_samples < r.sampled.samples
-    assert r.extra["lower_bound_proof"] == limits_mod.PROOF_UNLIMITED
+    assert r.extra["lower_bound_proof"] == limit_proof.PROOF_UNLIMITED
 
 
 def test_an_undecided_lp_is_never_read_as_infeasible(monkeypatch):
