@@ -27,7 +27,8 @@ from typing import Any
 import yaml
 
 from .errors import ConfigError
-from .parameters import KNOWN, ParameterType, rcl_scalar, ros_type
+from .parameters import KNOWN
+from .ros_types import ParameterType, rcl_scalar, ros_type
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -284,7 +284,7 @@ RCL_SCALARS = [
 
 @pytest.mark.parametrize("text, value", RCL_SCALARS)
 def test_scalars_are_typed_as_rcl_types_them(text, value):
-    from flexmotion_ros.core.parameters import rcl_scalar
+    from flexmotion_ros.core.ros_types import rcl_scalar
 
     got = rcl_scalar(text)
     assert type(got) is type(value) and got == value
