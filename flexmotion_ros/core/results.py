@@ -236,17 +236,21 @@ class SampledProfile:
 
     def to_dict(self) -> dict:
         """JSON-friendly summary (commands included)."""
-        return {
-            "method": self.method,
-            "rate_hz": 1.0 / self.dt,
-            "samples": self.samples,
-            "sampled_duration": float(self.duration),
-            "minimal": bool(self.minimal),
-            "lower_bound_samples": int(self.lower_bound_samples),
-            "sampled_final_state_error": float(self.final_state_error),
-            "sampled_final_state_error_relative": float(self.final_state_error_relative),
-            "commands": [float(v) for v in self.commands],
-        }
+        return {**sampled_summary(self), "commands": [float(v) for v in self.commands]}
+
+
+def sampled_summary(profile: Any) -> dict:
+    """The JSON fields every sampled profile shares (one input or several): rate, count, proof, arrival error."""
+    return {
+        "method": profile.method,
+        "rate_hz": 1.0 / profile.dt,
+        "samples": profile.samples,
+        "sampled_duration": float(profile.duration),
+        "minimal": bool(profile.minimal),
+        "lower_bound_samples": int(profile.lower_bound_samples),
+        "sampled_final_state_error": float(profile.final_state_error),
+        "sampled_final_state_error_relative": float(profile.final_state_error_relative),
+    }
 
 
 @dataclass(frozen=True, kw_only=True)

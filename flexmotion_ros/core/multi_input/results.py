@@ -7,6 +7,7 @@ from enum import Enum
 
 import numpy as np
 
+from ..results import sampled_summary
 from .exact import VectorPiecewise
 from .problem import MultiMoveProblem
 
@@ -268,15 +269,8 @@ class MultiSampledProfile:
     def to_dict(self) -> dict:
         """JSON summary: ``samples``, ``commands`` (K rows of m values), proofs."""
         return {
-            "method": self.method,
-            "rate_hz": 1.0 / self.dt,
-            "samples": self.samples,
-            "sampled_duration": float(self.duration),
-            "minimal": bool(self.minimal),
-            "lower_bound_samples": int(self.lower_bound_samples),
+            **sampled_summary(self),
             "minimality_proof": self.proof,
-            "sampled_final_state_error": float(self.final_state_error),
-            "sampled_final_state_error_relative": float(self.final_state_error_relative),
             "commands": [[float(v) for v in row] for row in self.commands],
             "sync": str(self.sync),
         }
