@@ -11,6 +11,7 @@ a fresh process writes only its answer.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import subprocess
 import sys
@@ -209,3 +210,20 @@ def test_no_banner_on_stdout_from_a_solve_or_the_command_line(tmp_path):
     assert plan.returncode == 0, plan.stderr
     assert "HiGHS" not in plan.stdout and "Running" not in plan.stdout
     assert "HiGHS" not in plan.stderr
+
+
+def _solve_in_child(queue) -> None:
+    queue.put(solve_lp(**random_lp(5, 6, 2, 60)).x)
+
+
+def test_a_forked_child_solves_after_its_parent_did():
+    """The planner forks its planning children; a child must not reuse (or hang on) its parent's solver."""
+    expected = solve_lp(**random_lp(5, 6, 2, 60)).x  # the parent's thread has its solver now
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_solve_in_child, args=(queue,))
+    child.start()
+    got = queue.get(timeout=60)
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    np.testing.assert_array_equal(got, expected)
