@@ -34,8 +34,9 @@ Wall-time latency median / p99 / max (ms) over the states, and failures
 that both see the same load, the ZOH stage alone (``plan_time_optimal_zoh``
 given the continuous optimum) and the cold replan, with the LPs solved
 through ``scipy.optimize.linprog`` (``linprog``: how the ZOH stage solved
-them before) and by HiGHS directly (``highspy``); ``same`` counts the states
-whose two ZOH sequences are identical bit for bit.
+them before) and by HiGHS directly (``highspy``); ``CPU``: the cold replan's
+median thread CPU time (ms), what its wall time would be on an idle core;
+``same`` counts the states whose two ZOH sequences are identical bit for bit.
 
     python bench/replan_latency.py
     python bench/replan_latency.py --states 200 --rate 500
@@ -117,7 +118,7 @@ def main() -> None:
             plan_move(cfg, rest_to_rest(model, u_max, gamma), None)
             r2r.append(1e3 * (time.perf_counter() - t0))
         cont, sampled, full, warm, failed = [], [], [], [], 0
-        ab = {key: [] for key in ("zoh_lp", "zoh_hs", "rpl_lp", "rpl_hs")}
+        ab = {key: [] for key in ("zoh_lp", "zoh_hs", "rpl_lp", "rpl_hs", "cpu_lp", "cpu_hs")}
         identical = 0
         hits, dT, dsw, dK = 0, 0.0, 0.0, 0
         for _ in range(a.states):
@@ -167,9 +168,10 @@ def main() -> None:
         print("# LP backend A/B, same states, alternating order: ZOH stage alone and cold replan (ms)")
         print(
             f"{'modes':>5} | {'ZOH linprog':>11} {'p99':>7} | {'ZOH highspy':>11} {'p99':>7} {'ratio':>6} | "
-            f"{'rpl linprog':>11} {'p99':>7} | {'rpl highspy':>11} {'p99':>7} {'ratio':>6} | {'same':>7}"
+            f"{'rpl linprog':>11} {'p99':>7} | {'rpl highspy':>11} {'p99':>7} {'ratio':>6} | "
+            f"{'CPU linprog':>11} {'CPU highspy':>11} | {'same':>7}"
         )
-        print("-" * 112)
+        print("-" * 138)
         for n, ab, identical in ab_rows:
             med = {key: float(np.median(v)) for key, v in ab.items()}
             p99 = {key: float(np.percentile(v, 99)) for key, v in ab.items()}
@@ -177,6 +179,7 @@ def main() -> None:
                 f"{n:5d} | {med['zoh_lp']:11.2f} {p99['zoh_lp']:7.2f} | {med['zoh_hs']:11.2f} {p99['zoh_hs']:7.2f} "
                 f"{med['zoh_hs'] / med['zoh_lp']:6.2f} | {med['rpl_lp']:11.2f} {p99['rpl_lp']:7.2f} | "
                 f"{med['rpl_hs']:11.2f} {p99['rpl_hs']:7.2f} {med['rpl_hs'] / med['rpl_lp']:6.2f} | "
+                f"{med['cpu_lp']:11.2f} {med['cpu_hs']:11.2f} | "
                 f"{identical:3d}/{len(ab['zoh_lp']):<3d}"
             )
 
@@ -194,9 +197,10 @@ def ab_once(ab: dict, linprog_first: bool, cfg, problem, continuous, seg, k, x, 
             zoh = plan_time_optimal_zoh(problem, rate, continuous)
             ab[f"zoh_{tag}"].append(1e3 * (time.perf_counter() - t0))
             commands[tag] = zoh.commands
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=False)
             ab[f"rpl_{tag}"].append(1e3 * (time.perf_counter() - t0))
+            ab[f"cpu_{tag}"].append(1e3 * (time.thread_time() - c0))
     finally:
         linear_program.DEFAULT_BACKEND = default
     return int(np.array_equal(commands["lp"], commands["hs"]))
