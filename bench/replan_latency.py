@@ -37,6 +37,8 @@ through ``scipy.optimize.linprog`` (``linprog``: how the ZOH stage solved
 them before) and by HiGHS directly (``highspy``); ``CPU``: the cold replan's
 median thread CPU time (ms), what its wall time would be on an idle core;
 ``same`` counts the states whose two ZOH sequences are identical bit for bit.
+A third table times the ZOH stage alone of ``planner_latency.py``'s 5 s move
+(1-8 modes) with both backends the same way.
 
     python bench/replan_latency.py
     python bench/replan_latency.py --states 200 --rate 500
@@ -182,6 +184,45 @@ def main() -> None:
                 f"{med['cpu_lp']:11.2f} {med['cpu_hs']:11.2f} | "
                 f"{identical:3d}/{len(ab['zoh_lp']):<3d}"
             )
+        zoh_5s_ab(10, a.rate)
+
+
+def zoh_5s_ab(repeats: int, rate: float) -> None:
+    """``--ab``: the ZOH stage alone of ``planner_latency.py``'s 5 s move (rigid-body time 5 s), both LP backends.
+
+    Chains of n+1 masses as there (``force_on=0``), n = 1, 2, 3, 5, 8; the
+    continuous optimum is planned once, then ``plan_time_optimal_zoh`` is timed
+    ``repeats`` times per backend, alternating.
+    """
+    print()
+    print(f"# LP backend A/B: ZOH stage alone of planner_latency.py's 5 s move at {rate:g} Hz, {repeats} repeats (ms)")
+    print(
+        f"{'modes':>5} {'K':>6} | {'linprog med':>11} {'min':>7} | {'highspy med':>11} {'min':>7} {'ratio':>6} | {'same':>5}"
+    )
+    print("-" * 72)
+    default = linear_program.DEFAULT_BACKEND
+    try:
+        for n in (1, 2, 3, 5, 8):
+            model = chain([0.5] * (n + 1), [400.0] * n, [0.4] * n, force_on=0).model
+            problem = rest_to_rest(model, 10.0, abs(model.b0) * 10.0 * 5.0**2 / 4.0)
+            optimum = plan_move(PlannerConfig(model=model, u_max=10.0), problem, None).continuous
+            times = {LpBackend.SCIPY: [], LpBackend.HIGHSPY: []}
+            out = {}
+            for r in range(repeats):
+                order = (LpBackend.SCIPY, LpBackend.HIGHSPY) if r % 2 == 0 else (LpBackend.HIGHSPY, LpBackend.SCIPY)
+                for backend in order:
+                    linear_program.DEFAULT_BACKEND = backend
+                    t0 = time.perf_counter()
+                    out[backend] = plan_time_optimal_zoh(problem, rate, optimum).commands
+                    times[backend].append(1e3 * (time.perf_counter() - t0))
+            lp, hs = np.array(times[LpBackend.SCIPY]), np.array(times[LpBackend.HIGHSPY])
+            same = np.array_equal(out[LpBackend.SCIPY], out[LpBackend.HIGHSPY])
+            print(
+                f"{n:5d} {out[LpBackend.HIGHSPY].size:6d} | {np.median(lp):11.2f} {lp.min():7.2f} | "
+                f"{np.median(hs):11.2f} {hs.min():7.2f} {np.median(hs) / np.median(lp):6.2f} | {str(same):>5}"
+            )
+    finally:
+        linear_program.DEFAULT_BACKEND = default
 
 
 def ab_once(ab: dict, linprog_first: bool, cfg, problem, continuous, seg, k, x, gamma, rate) -> int:
