@@ -42,6 +42,8 @@ try:  # an optional accelerator: without it, linprog solves the same LP
 except ImportError:  # pragma: no cover - exercised only on installs without highspy
     highspy = None
 
+#: HiGHS's default primal and dual feasibility tolerances (what ``linprog`` leaves them at unless told).
+DEFAULT_FEASIBILITY_TOL = 1e-7
 #: linprog's post-solve feasibility check, reproduced for the direct backend: ``sqrt(1e-9) * 10``.
 CHECK_TOL = 10.0 * 1e-9**0.5
 
@@ -189,7 +191,7 @@ def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s) -> LpSolution:
+def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
     n = c.size
     m_ub = 0 if b_ub is None else b_ub.size
     A = _stack_rows(A_ub, A_eq, n)
@@ -197,11 +199,20 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
     row_lo = np.concatenate([np.full(m_ub, -np.inf), b_eq if b_eq is not None else np.zeros(0)])
     row_hi = np.concatenate([b_ub if b_ub is not None else np.zeros(0), b_eq if b_eq is not None else np.zeros(0)])
     h = _solver()
-    options = (method.value, "on" if presolve else "off", float(time_limit_s) if time_limit_s is not None else np.inf)
+    primal, dual = (DEFAULT_FEASIBILITY_TOL if tol is None else float(tol) for tol in tolerances)
+    options = (
+        method.value,
+        "on" if presolve else "off",
+        float(time_limit_s) if time_limit_s is not None else np.inf,
+        primal,
+        dual,
+    )
     if options != getattr(_local, "options", None):  # set only what changed since this thread's last call
         h.setOptionValue("solver", options[0])
         h.setOptionValue("presolve", options[1])
         h.setOptionValue("time_limit", options[2])
+        h.setOptionValue("primal_feasibility_tolerance", primal)
+        h.setOptionValue("dual_feasibility_tolerance", dual)
         _local.options = options
     h.passModel(
         n,
@@ -274,10 +285,13 @@ _SCIPY_STATUS = {0: LpStatus.OPTIMAL, 1: LpStatus.TIME_LIMIT, 2: LpStatus.INFEAS
 _SCIPY_METHOD = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
 
 
-def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s) -> LpSolution:
+def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
     options = {"presolve": bool(presolve)}
     if time_limit_s is not None:
         options["time_limit"] = float(time_limit_s)
+    for name, tol in zip(("primal_feasibility_tolerance", "dual_feasibility_tolerance"), tolerances):
+        if tol is not None:
+            options[name] = float(tol)
     # dense rows as CSC: linprog converts a dense matrix itself, slower than HiGHS solves a full-horizon LP
     res = linprog(
         c,
@@ -314,6 +328,8 @@ def solve_lp(
     method: LpMethod = LpMethod.CHOOSE,
     presolve: bool = True,
     time_limit_s: float | None = None,
+    primal_feasibility_tolerance: float | None = None,
+    dual_feasibility_tolerance: float | None = None,
     backend: LpBackend | None = None,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
@@ -332,6 +348,9 @@ def solve_lp(
         HiGHS's presolve.
     time_limit_s : float, optional
         Wall-time limit (s); reaching it gives ``TIME_LIMIT``.
+    primal_feasibility_tolerance, dual_feasibility_tolerance : float, optional
+        HiGHS's tolerances (``linprog``'s options of the same names); default
+        :data:`DEFAULT_FEASIBILITY_TOL`, HiGHS's own.
     backend : LpBackend, optional
         Default :data:`DEFAULT_BACKEND` (``HIGHSPY`` when installed).
 
@@ -354,7 +373,17 @@ def solve_lp(
     if which is LpBackend.HIGHSPY and highspy is None:
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
-    return solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s)
+    tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
+    return solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
 
 
-__all__ = ["CHECK_TOL", "DEFAULT_BACKEND", "LpBackend", "LpMethod", "LpSolution", "LpStatus", "solve_lp"]
+__all__ = [
+    "CHECK_TOL",
+    "DEFAULT_BACKEND",
+    "DEFAULT_FEASIBILITY_TOL",
+    "LpBackend",
+    "LpMethod",
+    "LpSolution",
+    "LpStatus",
+    "solve_lp",
+]

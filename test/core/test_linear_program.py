@@ -227,3 +227,28 @@ def test_a_forked_child_solves_after_its_parent_did():
     child.join(timeout=60)
     assert child.exitcode == 0
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_feasibility_tolerances_reach_the_solver(backend):
+    """``primal/dual_feasibility_tolerance`` as linprog's options (the planners' 1e-10): the same optimum as linprog."""
+    lp = random_lp(9, 8, 3, 200)
+    lp["lower"][:] = -1.0  # every variable boxed: bounded
+    tols = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+    got = solve_lp(**lp, **tols, backend=backend)
+    ref = linprog(
+        lp["cost"],
+        A_ub=lp["A_ub"],
+        b_ub=lp["b_ub"],
+        A_eq=lp["A_eq"],
+        b_eq=lp["b_eq"],
+        bounds=np.column_stack([lp["lower"], lp["upper"]]),
+        method="highs",
+        options=tols,
+    )
+    assert ref.status == 0 and got.status is LpStatus.OPTIMAL
+    assert got.objective == pytest.approx(ref.fun, rel=1e-9)
+    assert np.max(np.abs(lp["A_eq"] @ got.x - lp["b_eq"])) <= 1e-9
+    # and the defaults come back for the next call of this thread
+    again = solve_lp(**lp, backend=backend)
+    assert again.objective == pytest.approx(ref.fun, rel=1e-6)
