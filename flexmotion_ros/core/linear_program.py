@@ -41,6 +41,8 @@ try:  # an optional accelerator: without it, linprog solves the same LP
     import highspy
 except ImportError:  # pragma: no cover - exercised only on installs without highspy
     highspy = None
+if highspy is not None and not hasattr(highspy, "_Highs"):  # pragma: no cover - a highspy without its core class
+    highspy = None
 
 #: HiGHS's default primal and dual feasibility tolerances (what ``linprog`` leaves them at unless told).
 DEFAULT_FEASIBILITY_TOL = 1e-7
