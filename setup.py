@@ -22,7 +22,9 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     python_requires=">=3.10",
-    install_requires=["setuptools", "numpy", "scipy", "pyyaml", "matplotlib"],
+    # highspy: HiGHS directly, without linprog's per-call overhead (core/linear_program.py; optional at
+    # run time: without it linprog solves the same LPs)
+    install_requires=["setuptools", "numpy", "scipy", "pyyaml", "matplotlib", "highspy>=1.16,<2"],
     extras_require={
         # ROS 2 Jazzy from PyPI, for machines without a ROS distro
         "ros": ["ros-jazzy-rclpy", "ros-jazzy-common-interfaces", "ros-jazzy-rmw-fastrtps-cpp"],

@@ -21,13 +21,14 @@ and logging):
 * :mod:`.trajectory` -- a plan as ``JointTrajectory`` data a
   ``joint_trajectory_controller`` plays exactly, and the replacement after a splice;
 * :mod:`.jtc` -- the JTC's sampling rule and update loop, re-implemented;
-* :mod:`.replan` -- closed-loop replanning from an estimated state.
+* :mod:`.replan` -- closed-loop replanning from an estimated state (:mod:`.replan_point`: where it starts).
 """
 
 from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
 from .jtc import HeldPiece, TrajectoryPlayer, held_pieces, sample, started
 from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
-from .replan import ReplanOutcome, ReplanPoint, ReplanStatus, replan, replan_point
+from .replan import ReplanOutcome, ReplanStatus, replan
+from .replan_point import ReplanPoint, replan_point
 from .requests import Request, RequestKind, RequestWorker
 from .splice import (
     DEFAULT_PLAN_TIME_S,

@@ -1,11 +1,9 @@
 """Closed-loop replanning from an estimated state, spliced ahead of the planning time (ROS-free).
 
 Every ``feedback.replan_period_s`` during a move the node has an estimate of
-the state (:mod:`flexmotion_ros.core.estimation`) at some sample ``k_e``.
-:func:`replan_point` carries it forward with the commands the timeline will
-send anyway, to the splice sample ``k_s = k_next + lead`` (the look-ahead of
-:func:`~.splice.lead_samples`, which covers the planning time, as for a
-preemption), and compares it with what the timeline predicts there.
+the state (:mod:`flexmotion_ros.core.estimation`) at some sample ``k_e``;
+:func:`~.replan_point.replan_point` carries it to the splice sample ``k_s``
+ahead of the planning time and measures its deviation from the plan there.
 :func:`replan` then decides:
 
 * the estimate agrees with the prediction (deviation below ``min_deviation``
@@ -27,6 +25,7 @@ thread and splices the segment as it splices a preemption.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -37,17 +36,18 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..core.config import PlannerConfig
-from ..core.errors import FlexmotionError, GoalError
+from ..core.errors import FlexmotionError
 from ..core.methods.table import plan_move
 from ..core.model.boundary import state_to_rest
 from ..core.model.modal_model import ModalModel
 from ..core.results import BangBangProfile, PlanResult
-from ..core.simulation.exact import modal_amplitudes, step_matrices
+from ..core.simulation.exact import modal_amplitudes
 from ..core.time_optimal.warm_start import WarmStart, remainder
-from .timeline import Segment, predicted_state
+from .replan_point import ReplanPoint, replan_point
+from .timeline import Segment
 from .trajectory import timeline_commands
 
-#: Replan only if the deviation exceeds this fraction of the move (state units, see :func:`relative_deviation`).
+#: Replan only if the deviation exceeds this fraction of the move (see :func:`.replan_point.relative_deviation`).
 MIN_DEVIATION = 1e-6
 #: ... and is significant against the estimate's covariance: its Mahalanobis distance squared exceeds
 #: this chi-square quantile (a deviation the noise explains is not corrected).
@@ -70,35 +70,6 @@ class ReplanStatus(Enum):
     ON_PLAN = "on_plan"  # the estimate agrees with the timeline: nothing changes
     IDLE = "idle"  # no timeline: nothing to correct
     FAILED = "failed"  # the planner refused: the current plan goes on
-
-
-@dataclass(frozen=True, kw_only=True)
-class ReplanPoint:
-    """Where a replan would start, and how far the estimate is from the plan there.
-
-    Attributes
-    ----------
-    sample : int
-        The splice sample ``k_s`` (global index).
-    state : ndarray
-        The estimated state carried to ``k_s`` with the timeline's commands.
-    predicted : ndarray
-        What the timeline predicts at ``k_s``.
-    deviation : float
-        :func:`relative_deviation` of the two (fraction of the move).
-    significance : float or None
-        Mahalanobis distance squared of the deviation against the carried
-        covariance (None without a covariance).
-    lead : int
-        ``k_s - k_next`` (samples).
-    """
-
-    sample: int
-    state: np.ndarray
-    predicted: np.ndarray
-    deviation: float
-    significance: float | None
-    lead: int
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -126,18 +97,10 @@ class ReplanOutcome:
     plan_time_s: float = 0.0
 
 
-def relative_deviation(model: ModalModel, deviation: np.ndarray, move_size: float, horizon_s: float) -> float:
-    """How large a state deviation is, as a fraction of the move (dimensionless).
-
-    ``max(|dp|, |dv| horizon_s, amplitude of each mode's deviation) / move_size``:
-    what it would leave at the end if nothing corrected it -- a velocity error
-    drifts for ``horizon_s`` (the rest of the timeline), a mode's error
-    vibrates with its amplitude.
-    """
-    d = np.asarray(deviation, dtype=float)
-    amps = modal_amplitudes(model, d) if model.n_modes else np.zeros(0)
-    worst = max(abs(d[0]), abs(d[1]) * max(horizon_s, 0.0), *(amps.tolist() or [0.0]))
-    return float(worst / move_size)
+@functools.lru_cache(maxsize=64)
+def chi_square_gate(probability: float, dof: int) -> float:
+    """The chi-square quantile the significance is gated at (cached: ``chi2.ppf`` costs more than a replan decision)."""
+    return float(chi2.ppf(probability, dof))
 
 
 def correction_bound(model: ModalModel, deviation: np.ndarray, u_max: float, duration_s: float) -> float:
@@ -168,27 +131,6 @@ def correction_bound(model: ModalModel, deviation: np.ndarray, u_max: float, dur
     return float(min(u_max, CORRECTION_MARGIN * need)) if need > 0.0 else float(u_max)
 
 
-def timeline_move_size(timeline: Sequence[Segment]) -> float:
-    """The size of the timeline's move (m): how far its predicted position travels (1 if it does not)."""
-    if not timeline:
-        return 1.0
-    p = np.concatenate([seg.states[:, 0] for seg in timeline])
-    span = float(np.max(p) - np.min(p))
-    return span if span > 0.0 else 1.0
-
-
-def carry(model: ModalModel, dt: float, x, P, commands) -> tuple[np.ndarray, np.ndarray | None]:
-    """State (and covariance, if given) carried over ``commands`` (exact ZOH, no process noise)."""
-    Phi, Gam = step_matrices(model.A(), model.B(), dt)
-    x = np.array(x, dtype=float)
-    P = None if P is None else np.array(P, dtype=float)
-    for u in commands:
-        x = Phi @ x + Gam * u
-        if P is not None:
-            P = Phi @ P @ Phi.T
-    return x, P
-
-
 def plan_of(info) -> PlanResult | None:
     """The plan a segment's ``info`` records: a :class:`PlanResult`, or a record with one as ``result`` (a node's)."""
     if isinstance(info, PlanResult):
@@ -215,70 +157,6 @@ def warm_start_at(timeline: Sequence[Segment], sample: int, dt: float) -> WarmSt
     return None
 
 
-def replan_point(
-    timeline: Sequence[Segment],
-    k_next: int,
-    lead: int,
-    estimate,
-    estimate_sample: int,
-    *,
-    model: ModalModel,
-    dt: float,
-    covariance=None,
-    move_size: float | None = None,
-) -> ReplanPoint | None:
-    """The splice sample, the estimated state carried there, and its deviation from the plan.
-
-    Parameters
-    ----------
-    timeline : sequence of Segment
-        The stream's queued segments (empty: idle).
-    k_next : int
-        The sample the stream sends next.
-    lead : int
-        Look-ahead (samples) covering the planning time (:func:`~.splice.lead_samples`).
-    estimate : array_like
-        The estimated state before command ``estimate_sample`` (``[p, v, q_1, q_1', ...]``).
-    estimate_sample : int
-        Its global sample index (``<= k_next + lead``).
-    model : ModalModel
-    dt : float
-        Sample period (s).
-    covariance : array_like, optional
-        The estimate's covariance (enables the significance test).
-    move_size : float, optional
-        Default: :func:`timeline_move_size`.
-
-    Returns
-    -------
-    ReplanPoint or None
-        None when idle.
-
-    Raises
-    ------
-    GoalError
-        The estimate is later than the splice, or has the wrong size.
-    """
-    if not timeline:
-        return None
-    k_s = k_next + lead
-    if estimate_sample > k_s:
-        raise GoalError("estimate_sample", f"the estimate (sample {estimate_sample}) is later than the splice ({k_s})")
-    x = np.asarray(estimate, dtype=float).ravel()
-    if x.size != model.n_states:
-        raise GoalError("estimate", f"must have {model.n_states} entries, got {x.size}")
-    commands = timeline_commands(timeline, estimate_sample, k_s)
-    xs, Ps = carry(model, dt, x, covariance, commands)
-    pred = predicted_state(timeline, k_s)
-    d = xs - pred
-    horizon = max(timeline[-1].end - k_s, 1) * dt
-    dev = relative_deviation(model, d, move_size or timeline_move_size(timeline), horizon)
-    sig = None
-    if Ps is not None:
-        sig = float(d @ np.linalg.lstsq(Ps, d, rcond=1e-12)[0])
-    return ReplanPoint(sample=k_s, state=xs, predicted=pred, deviation=dev, significance=sig, lead=lead)
-
-
 def replan(
     timeline: Sequence[Segment],
     k_next: int,
@@ -301,7 +179,7 @@ def replan(
     Parameters
     ----------
     timeline, k_next, lead, estimate, estimate_sample, covariance, move_size
-        As for :func:`replan_point`.
+        As for :func:`~.replan_point.replan_point`.
     config : PlannerConfig
         The node's configuration (model, bound, rate, method).
     target : float or None
@@ -356,7 +234,7 @@ def replan(
             status=ReplanStatus.ON_PLAN, point=point, reason=f"deviation {point.deviation:.2e} of the move"
         )
     if point.significance is not None:
-        gate = float(chi2.ppf(gate_probability, model.n_states))
+        gate = chi_square_gate(gate_probability, model.n_states)
         if point.significance <= gate:
             return ReplanOutcome(
                 status=ReplanStatus.ON_PLAN,
@@ -428,17 +306,13 @@ __all__ = [
     "GATE_PROBABILITY",
     "MIN_DEVIATION",
     "ReplanOutcome",
-    "ReplanPoint",
     "ReplanStatus",
     "CORRECTION_MARGIN",
     "CORRECTION_PERIODS",
     "FINISH_PERIODS",
-    "carry",
+    "chi_square_gate",
     "correction_bound",
     "plan_of",
-    "relative_deviation",
     "replan",
-    "replan_point",
-    "timeline_move_size",
     "warm_start_at",
 ]

@@ -19,14 +19,8 @@ from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import modal_amplitudes, simulate_samples
-from flexmotion_ros.execution.replan import (
-    ReplanStatus,
-    carry,
-    relative_deviation,
-    replan,
-    replan_point,
-    warm_start_at,
-)
+from flexmotion_ros.execution.replan import ReplanStatus, replan, warm_start_at
+from flexmotion_ros.execution.replan_point import carry, relative_deviation, replan_point
 from flexmotion_ros.execution.timeline import Segment
 from flexmotion_ros.execution.trajectory import timeline_commands
 

@@ -37,9 +37,9 @@ from collections.abc import Callable
 import numpy as np
 from scipy import sparse
 from scipy.linalg import qr
-from scipy.optimize import linprog
 
 from ..errors import GoalError, SolverError
+from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
@@ -91,25 +91,24 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     # the solution unchanged; the multipliers scale back below.
     rows = np.maximum(np.max(np.abs(A_eq), axis=1), np.abs(b_eq))
     rows = np.where(rows > 0.0, rows, 1.0)
-    # handed over as CSC: scipy's linprog otherwise converts the dense rows
-    # itself, slower than HiGHS solves a full-horizon LP (measured 2.4x in all)
-    A_eq = sparse.csc_matrix(A_eq / rows[:, None])
+    A_eq = A_eq / rows[:, None]  # dense: the backend builds its compressed columns without scipy.sparse
     b_eq = b_eq / rows
     cost = np.zeros(nF + 1)
     cost[-1] = -1.0
-    bounds = np.empty((nF + 1, 2))
-    bounds[:nF, 0] = -1.0
-    bounds[:nF, 1] = 1.0
-    bounds[nF] = (0.0, np.inf)
+    lower = np.full(nF + 1, -1.0)
+    upper = np.ones(nF + 1)
+    lower[nF] = 0.0
+    upper[nF] = np.inf
     # n dense rows and box bounds: HiGHS's presolve finds nothing to remove and
     # costs ~30 % of the solve; it runs only if the dual simplex alone reports
-    # a numerical difficulty (status 4)
-    res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs-ds", options={"presolve": False})
-    if res.status == 4:
-        res = linprog(cost, A_eq=A_eq, b_eq=b_eq, bounds=bounds, method="highs")
-    if res.status == 3:  # unbounded s (t* = 0 numerically): the min-t form decides
+    # a numerical difficulty
+    lp = dict(cost=cost, A_eq=A_eq, b_eq=b_eq, lower=lower, upper=upper)
+    res = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, presolve=False)
+    if res.status is LpStatus.OTHER:
+        res = solve_lp(**lp)
+    if res.status is LpStatus.UNBOUNDED:  # unbounded s (t* = 0 numerically): the min-t form decides
         return _solve_peak_lp_rows(G, w, signs, free)
-    if res.status != 0:
+    if res.status is not LpStatus.OPTIMAL:
         return None
     s_star = float(res.x[-1])
     if not s_star > 0.0:
@@ -117,7 +116,7 @@ def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndar
     t = 1.0 / s_star
     u = signs * t
     u[F] = res.x[:nF] * t
-    return u, t, t * np.asarray(res.eqlin.marginals, dtype=float) / rows
+    return u, t, t * res.eq_marginals / rows
 
 
 def _solve_peak_lp_rows(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
@@ -137,21 +136,15 @@ def _solve_peak_lp_rows(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: n
     cols = np.concatenate([np.arange(nF), np.arange(nF), np.full(2 * nF, nF)])
     vals = np.concatenate([np.ones(nF), -np.ones(nF), -np.ones(2 * nF)])
     A_ub = sparse.csr_matrix((vals, (rows, cols)), shape=(2 * nF, nF + 1))
-    res = linprog(
-        cost,
-        A_ub=A_ub,
-        b_ub=np.zeros(2 * nF),
-        A_eq=A_eq,
-        b_eq=w,
-        bounds=[(None, None)] * nF + [(0.0, None)],
-        method="highs",
-    )
-    if res.status != 0:
+    lower = np.full(nF + 1, -np.inf)
+    lower[nF] = 0.0
+    res = solve_lp(cost=cost, A_ub=A_ub, b_ub=np.zeros(2 * nF), A_eq=A_eq, b_eq=w, lower=lower, upper=np.inf)
+    if res.status is not LpStatus.OPTIMAL:
         return None
     t = float(res.x[-1])
     u = signs * t
     u[F] = res.x[:nF]
-    return u, t, np.asarray(res.eqlin.marginals, dtype=float)
+    return u, t, res.eq_marginals
 
 
 def dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray) -> float:
