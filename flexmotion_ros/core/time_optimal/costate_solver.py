@@ -54,6 +54,10 @@ __all__ = [
 SMOOTHING = (0.02, 0.002)
 #: Steps on the duration per smoothing level.
 SMOOTH_OUTER = 12
+#: After a failed switch-time Newton at the smoothed start, the iteration on ``T``
+#: continues from there with this share of the work budget, then (if it found no
+#: extremal) restarts from the first guess ``T_init`` (0: only that, as before issue 15's tail work).
+CONTINUE_SHARE = 0.1
 #: Evaluations of the exact shooting map after which the full solver stops
 #: and the bounded structure search (:func:`~.fallbacks.structure_fallback`) takes over:
 #: the work of a plan is bounded whatever the model (measured on the random
@@ -136,15 +140,53 @@ def solve_costate(
     found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
     if found is not None:
         return found
-    # otherwise, from the first guess again: exact inner problems on T, trying
-    # the switch-time Newton whenever m comes markedly closer to 1
-    T = max(T_init, T_low, 1e-300)
-    nuh, _, _ = inner_smooth(sh, T, None, SMOOTHING[0])
+    # otherwise exact inner problems on T, trying the switch-time Newton
+    # whenever m comes markedly closer to 1.  First from the exact solve just
+    # made (a restart from the first guess walked back up to it: 5 of 14 exact
+    # solves of a 259-switch stop; it refused a 6-mode moving start whose
+    # first-guess iterations crawled on unproved bounds), with a share of the
+    # work budget; if that finds no extremal, from the first guess.
+    budget = evaluation_budget(sh.sys, T)
+    attempts = [(T, nuh, abs(m - 1.0), sh.evaluations + CONTINUE_SHARE * budget)] if CONTINUE_SHARE > 0.0 else []
+    attempts.append((max(T_init, T_low, 1e-300), None, math.inf, math.inf))
+    scale = sh.s
+    for T, nuh_a, tried_gap, limit in attempts:
+        if nuh_a is None:  # afresh, as if the first attempt had not been made
+            sh.s = scale
+            nuh_a = inner_smooth(sh, T, None, SMOOTHING[0])[0]
+        found, nuh, T, e_last, converged = _iterate_on_duration(sh, T, nuh_a, tried_gap, T_low, limit)
+        e = e_last if e_last is not None else e
+        if found is not None:
+            return found
+        if converged or sh.evaluations > evaluation_budget(sh.sys, T):
+            break
+    if sh.evaluations > evaluation_budget(sh.sys, T):
+        return nuh, T, e.roots, e.signs, math.inf
+    # last resort: full-accuracy nested iteration, then the joint Newton polish
+    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11, max_outer=20)
+    nuh = rescale(sh, nuh, T)
+    nuh, T, e, r = polish(sh, nuh, T)
+    if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
+        found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
+        if found is not None:
+            return found
+    return nuh, T, e.roots, e.signs, r
+
+
+def _iterate_on_duration(sh: Shooting, T: float, nuh: np.ndarray, tried_gap: float, T_low: float, limit: float):
+    """Exact inner problems on ``T`` from ``(T, nuh)``, the switch-time Newton tried as ``m`` nears 1.
+
+    ``tried_gap``: ``|m - 1|`` at the last switch-time Newton attempt (inf:
+    none yet); ``limit``: stop past this many evaluations (and past the work
+    budget).  Returns ``(found, nuh, T, e, converged)``: ``found`` the
+    extremal of :func:`~.switch_newton.structure_newton` or None, the last
+    iterate and evaluation, and whether ``m(T) = 1`` was reached (to 1e-11).
+    """
     lo, hi = T_low, math.inf
-    tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
+    e = None
     for _ in range(60):
-        if sh.evaluations > evaluation_budget(sh.sys, T):  # bounded work: the structure search takes over
-            return nuh, T, e.roots, e.signs, math.inf
+        if sh.evaluations > min(limit, evaluation_budget(sh.sys, T)):  # bounded work
+            return None, nuh, T, e, False
         before = sh.evaluations
         nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
         # an unconverged inner solve gives an upper bound on m(T) only: m < 1 proves T short,
@@ -178,21 +220,11 @@ def solve_costate(
             nuh = rescale(sh, nuh, T)
             found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
             if found is not None:
-                return found
+                return found, nuh, T, e, True
         if gap <= 1e-11:
-            break
+            return None, nuh, T, e, True
         T, lo, hi = bracketed_step(T, m, dm, lo, hi)
-    if sh.evaluations > evaluation_budget(sh.sys, T):
-        return nuh, T, e.roots, e.signs, math.inf
-    # last resort: full-accuracy nested iteration, then the joint Newton polish
-    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11, max_outer=20)
-    nuh = rescale(sh, nuh, T)
-    nuh, T, e, r = polish(sh, nuh, T)
-    if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
-        found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
-        if found is not None:
-            return found
-    return nuh, T, e.roots, e.signs, r
+    return None, nuh, T, e, False
 
 
 @dataclass
