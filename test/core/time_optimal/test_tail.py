@@ -22,9 +22,15 @@
   quarter period) and walked back up; from the smoothed start's exact solve
   it plans, certified.  Case 544 (4 modes, a 21-switch stop): the same
   change, 104 -> 82 exact co-state evaluations.
+* The smoothed warm start of a long damped move sampled the fastest mode's
+  spacing over the whole move, long after that mode had rung out (case 3220:
+  288,471 responses ``e^{A tau} B`` per plan on 8250f90, 23,131 with the
+  graded grid of ``reachable_set.graded_grid``), same optimum.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from reference_solutions import bang_bang_final_error as _error
@@ -33,6 +39,7 @@ from reference_solutions import rigid_min_time
 from flexmotion_ros.core import ModalModel, MoveProblem
 from flexmotion_ros.core.results import SolverPath
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
+from flexmotion_ros.core.time_optimal import reachable_set
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 from flexmotion_ros.core.time_optimal.switching import EXCLUSION_BLOCK, examined_points, sample_grid
 
@@ -150,7 +157,9 @@ def test_a_six_mode_moving_start_refused_after_a_restart_from_the_first_guess_pl
     _check(problem, plan_time_optimal(problem))
 
 
-def test_a_failed_switch_newton_continues_from_the_smoothed_start():
+def test_a_failed_switch_newton_continues_from_the_smoothed_start(monkeypatch):
+    # the uniform warm start of b52bcae (with the graded one the fast path answers this move)
+    monkeypatch.setattr(reachable_set, "SMOOTH_DECAY", math.inf, raising=False)
     problem = _problem(CASE_544)
     profile = plan_time_optimal(problem)
     _check(problem, profile)
@@ -193,3 +202,19 @@ def test_zero_free_blocks_of_a_long_move_with_friction_are_found_coarse_to_fine(
     for i in gaps:
         seg = system.switching(nu, np.linspace(kept[i], kept[i + 1], 2001))
         assert np.all(np.sign(seg) == np.sign(seg[0]))
+
+
+def test_the_warm_start_of_a_long_damped_move_samples_only_where_modes_ring(monkeypatch):
+    problem = _problem(CASE_3220)
+    real = ModalResponse.expm_B
+    sampled = []
+
+    def counting(self, tau):
+        sampled.append(np.size(tau))
+        return real(self, tau)
+
+    monkeypatch.setattr(ModalResponse, "expm_B", counting)
+    profile = plan_time_optimal(problem)
+    _check(problem, profile)
+    assert abs(profile.duration - T_3220) <= 1e-12 * T_3220  # the same optimum
+    assert sum(sampled) < 60_000  # 288,471 on 8250f90: the fastest mode's spacing over all 1945 s
