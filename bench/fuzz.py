@@ -207,8 +207,9 @@ def check_plan(problem: MoveProblem, result) -> str | None:
 
 
 # ------------------------------------------------------------------ guard
-class Hang(Exception):
-    pass
+class Hang(BaseException):
+    """The guard's timeout: a BaseException, so that no planner's ``except Exception`` (the fast
+    paths record and survive their own errors) swallows it and runs on past the guard."""
 
 
 def _alarm(signum, frame):

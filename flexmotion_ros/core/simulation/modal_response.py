@@ -64,6 +64,9 @@ class ModalResponse:
         position is free (bring a moving machine to rest, seed eq. 2.13).
     """
 
+    #: :meth:`switching` takes ``rows=`` (a subset of a grid, from the grid's cached basis).
+    SWITCHING_TAKES_ROWS = True
+
     def __init__(self, model: ModalModel, include_position: bool = True) -> None:
         self.model = model
         self.include_position = include_position
@@ -220,17 +223,31 @@ class ModalResponse:
             del cache[2:]
         return val
 
-    def switching(self, nu: np.ndarray, tau: np.ndarray, derivative: bool = False, order: int | None = None):
+    def switching(
+        self,
+        nu: np.ndarray,
+        tau: np.ndarray,
+        derivative: bool = False,
+        order: int | None = None,
+        rows: np.ndarray | None = None,
+    ):
         """``S(tau) = nu^T e^{A tau} B`` and its derivatives in ``tau``.
 
         ``derivative=True`` returns ``(S, S')``; ``order=k`` returns
         ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one
-        matrix product over the modes for all orders.
+        matrix product over the modes for all orders.  ``rows``: evaluate at
+        ``tau[rows]`` only, from the basis of the whole of ``tau`` (cached
+        for a planner's grid: many subsets of one grid share one ``exp``,
+        ``sin``, ``cos`` evaluation).
         """
         k = 0 if order is None else order
         if derivative and order is None:
             k = 1
         tau = tau if isinstance(tau, np.ndarray) and tau.ndim == 1 else np.atleast_1d(np.asarray(tau, dtype=float))
+        basis = None
+        if rows is not None:
+            basis = self._trig_basis(tau)[rows] if self.w.size else None
+            tau = tau[rows]
         nu = np.asarray(nu, dtype=float)
         c = self.c
         nv = nu[self.r - 1]
@@ -256,7 +273,7 @@ class ModalResponse:
                 coef[: self.w.size, j] = a
                 coef[self.w.size :, j] = bb
                 a, bb = -(a * self.sig + bb * self.wd), a * self.wd - bb * self.sig
-            modal = self._trig_basis(tau) @ coef
+            modal = (basis if basis is not None else self._trig_basis(tau)) @ coef
         else:
             modal = None
         out = []

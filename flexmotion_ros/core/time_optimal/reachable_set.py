@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..simulation.error_scale import state_scale  # re-exported: the error scale lives with the simulation
-from .switching import find_roots, sample_grid
+from .switching import MIN_GRID_POINTS, POINTS_PER_HALF_PERIOD, find_roots, sample_grid
 
 
 @dataclass
@@ -227,6 +227,11 @@ SMOOTH_FULL_GRID = 4096
 #: problem only gives a warm start, and on a move of thousands of periods it
 #: was most of the planning time (measured: 2.3 of 4.0 s on a 1641 s move).
 SMOOTH_LONG_DENSITY = 0.25
+#: ... and on a long move, a mode whose response has decayed by ``e^-SMOOTH_DECAY``
+#: (about 2e-16) no longer sets the rule's spacing: the grid is graded
+#: (:func:`graded_grid`), so a damped long move's warm start samples the fast
+#: modes only while they ring, not over the whole move.  Inf: never (the uniform rule).
+SMOOTH_DECAY = 36.0
 #: Newton on the smoothed problem stops when the predicted decrease is below
 #: this (relative): a warm start whose duration is wanted to 1e-3 needs no
 #: more (1e-14 took twice the iterations for the same guesses).
@@ -243,10 +248,17 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     """
     sys, s, um = sh.sys, sh.s, sh.u_max
     grid = sample_grid(sys, T)
+    graded = None
     if grid.size > SMOOTH_FULL_GRID:  # a long move: a warm start needs no proof, a coarser rule will do
         grid = sample_grid(sys, T, density=SMOOTH_LONG_DENSITY)
-    wq = np.full(grid.size, grid[1] - grid[0])
-    wq[[0, -1]] *= 0.5
+        graded = graded_grid(sys, T, SMOOTH_LONG_DENSITY * POINTS_PER_HALF_PERIOD)
+    if graded is not None and graded.size < 0.5 * grid.size:
+        grid = graded
+        h = np.diff(grid)
+        wq = 0.5 * (np.concatenate([h, [0.0]]) + np.concatenate([[0.0], h]))  # the trapezoidal rule's weights
+    else:
+        wq = np.full(grid.size, grid[1] - grid[0])
+        wq[[0, -1]] *= 0.5
     Gm = sys.expm_B(grid) / s
     eAx = sys.expm_x(T, sh.x0)
     w = -eAx / s
@@ -292,6 +304,36 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     mu = um * float(wq @ (S * S / np.sqrt(S * S + eps * eps)))  # Lagrange multiplier nu.grad h
     dm = um * (math.sqrt(S[-1] ** 2 + eps * eps) - eps) + mu * float(nu @ sys.A_x(eAx))
     return nuh, f, dm
+
+
+def graded_grid(system, T: float, per_half_period: float) -> np.ndarray | None:
+    """Points on ``[0, T]`` (s) spaced by the fastest mode still ringing, for the smoothed problem.
+
+    Mode ``i``'s response decays like ``e^{-zeta_i omega_i tau}``; past
+    ``tau = SMOOTH_DECAY / (zeta_i omega_i)`` it is below rounding of its
+    start and the rule's spacing follows the next slower mode (a rigid tail:
+    the rigid body's own time scale).  ``per_half_period`` points per half
+    period of the fastest mode alive in each stretch.  None for a system
+    without ``sig`` (decay rates) or if no mode decays within ``T``.
+    """
+    sig, wd = getattr(system, "sig", None), getattr(system, "wd", None)
+    if sig is None or wd is None or not np.size(wd) or not math.isfinite(SMOOTH_DECAY):
+        return None
+    with np.errstate(divide="ignore"):
+        life = np.where(sig > 0.0, SMOOTH_DECAY / np.maximum(sig, 1e-300), math.inf)
+    ends = np.unique(np.concatenate([life[life < T], [T]]))
+    if ends.size == 1:
+        return None
+    c = abs(float(getattr(system, "c", 0.0)))
+    pieces, a = [], 0.0
+    for b in ends:
+        alive = wd[life > a]
+        w = float(np.max(alive)) if alive.size else 0.0
+        n = max(MIN_GRID_POINTS // 2, math.ceil((b - a) * w / math.pi * per_half_period), math.ceil(8.0 * c * (b - a)))
+        pieces.append(np.linspace(a, b, n + 1)[:-1])
+        a = b
+    pieces.append(np.array([T]))
+    return np.concatenate(pieces)
 
 
 def bracketed_step(T: float, m: float, dm: float, lo: float, hi: float) -> tuple[float, float, float]:

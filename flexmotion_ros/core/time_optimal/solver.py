@@ -22,18 +22,20 @@ is non-decreasing in ``T``.  So the optimal time is the root of ``m(T) = 1``:
 3. *Polish*: Newton on ``F(nu, T) = 0`` jointly (quadratic convergence) to
    machine precision.
 
-Fast path: from the smoothed co-state of step 1, Newton on the switch times
-(:mod:`flexmotion_ros.core.structure_guess`) usually reaches the optimum
-without the exact inner problems; its result is kept only if it passes the
-checks below (else the full solver runs, unchanged).  Before it, its lean
-variant (:mod:`.lean`: one coarse smoothing level, fused closed forms) tries
-the same on small moves, under the same checks.  ``profile.extra`` says which
-path answered (``"solver_path"``; ``"fast_path_stage": "lean"`` for the lean one).
+The planner tries, in order, each stage only if the one before found no
+certified optimum: the rigid body's optimum when it leaves every mode at rest
+(or nearly: :func:`~.fallbacks.cluster_fallback`), the warm start of a replan
+(:mod:`.warm_start`), the fast paths (:func:`_lean_path`, :func:`_fast_path`: guess a switch
+structure from a smoothed co-state, Newton on the switch times), then the
+full solver (:mod:`.costate_solver`: steps 1-3 above, bounded work) and its
+fallbacks (:mod:`.fallbacks`).  ``profile.extra["solver_path"]`` says which
+answered.
 
-The result is then checked independently: the final state by
-matrix-exponential simulation, optimality by the Pontryagin certificate
-(:mod:`flexmotion_ros.core.certificate`).  A profile whose final state misses
-the target is never returned.
+Every candidate of every stage goes through the same check
+(:func:`_assemble`): the final state by matrix-exponential
+simulation, optimality by the Pontryagin certificate
+(:mod:`flexmotion_ros.core.time_optimal.certificate`).  A profile whose final
+state misses the target is never returned.
 """
 
 from __future__ import annotations
@@ -41,7 +43,6 @@ from __future__ import annotations
 import copy
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -52,35 +53,21 @@ from ..simulation.error_scale import relative_final_state_error
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
-from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES, POLISH_TOL
+from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES
 from .certificate import certify
+from .costate_solver import BangBangSolution, smoothed_start, solve_bang_bang, solve_costate
 from .fallbacks import cluster_fallback, end_blip_fallback, structure_fallback
 from .lean import MAX_MODES as LEAN_MAX_MODES
 from .lean import MAX_POINTS as LEAN_MAX_POINTS
 from .lean import LeanMove, smoothed_guess, structure_from_samples
 from .lean import refine as lean_refine
-from .reachable_set import (
-    Shooting,
-    bracketed_step,
-    inner_exact,
-    inner_smooth,
-    outer_newton,
-    polish,
-    rescale,
-    state_scale,
-)
+from .reachable_set import Shooting, rescale, state_scale
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
-from .switch_newton import structure_newton
-from .switching import POINTS_PER_HALF_PERIOD, fastest_frequency
 from .warm_start import WarmStart, WarmTools, warm_path
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
 
-#: Smoothing levels (relative to the mean |S|) of the warm-start stage.
-SMOOTHING = (0.02, 0.002)
-#: Steps on the duration per smoothing level.
-SMOOTH_OUTER = 12
 #: The fast path's second guess, if the first fails: smoothed inner problems at
 #: this finer level, from the warm start (sharper near-tangencies of ``S``:
 #: short blips of the optimum show).  0: no second guess.
@@ -93,42 +80,10 @@ FINE_SMOOTHING = 2e-4
 #: solver's, and otherwise the full solver runs (tests compare both).
 FAST_PATH = True
 #: A rigid optimum missing the target by less than this (relative) is tried
-#: first with a notch at its switch (:func:`_cluster_fallback`): the structure
+#: first with a notch at its switch (:func:`~.fallbacks.cluster_fallback`): the structure
 #: of a machine tuned near a multiple of a period, whose notch is too narrow
 #: for the switching function to show.  Accepted only within ``GAP_RTOL``.
 NEAR_RIGID = 1e-5
-#: Evaluations of the exact shooting map after which the full solver stops
-#: and the bounded structure search (:func:`_structure_fallback`) takes over:
-#: the work of a plan is bounded whatever the model (measured on the random
-#: models of ``bench/fuzz.py`` and the property tests: certified answers needed
-#: up to 191, a stop of a 937-unit motion with 316 switches).  Since the
-#: bracket of ``T*`` is narrowed from above only by converged inner solves,
-#: 6-8 mode models that ran out at 400 converge with more (fuzz seed 15,
-#: cases 0..2999: 6 of the 9 refused at 400 plan, certified, with 521-992
-#: evaluations, 0.6-1.1 s).  Evaluations on long grids cost more: the budget
-#: falls to :data:`MIN_EVALUATIONS` as the grid grows past
-#: :data:`BUDGET_GRID_POINTS` (:func:`evaluation_budget`), so a refusal stays
-#: within a few seconds whatever the move.
-MAX_EVALUATIONS = 1200
-#: The budget on the longest grids (the one before the bracket was proved).
-MIN_EVALUATIONS = 400
-#: Grid points (bracketing grid of the switching function) up to which the
-#: full :data:`MAX_EVALUATIONS` are allowed.
-BUDGET_GRID_POINTS = 10_000
-
-
-def evaluation_budget(system, T: float) -> int:
-    """Exact co-state evaluations the full solver may spend at duration ``T`` (s).
-
-    :data:`MAX_EVALUATIONS` on grids up to :data:`BUDGET_GRID_POINTS` points,
-    then in proportion to the grid's length (the cost of one evaluation),
-    never below :data:`MIN_EVALUATIONS`.
-    """
-    points = T * fastest_frequency(system) / math.pi * POINTS_PER_HALF_PERIOD
-    scaled = MAX_EVALUATIONS * BUDGET_GRID_POINTS / max(points, 1.0)
-    return int(max(MIN_EVALUATIONS, min(MAX_EVALUATIONS, scaled)))
-
-
 #: Try the lean variant of the fast path (:mod:`.lean`: one smoothing level on
 #: a coarse grid, fused closed forms) first; it answers most small plans in a
 #: fraction of the fast path's time, and hands over to it (unchanged) when it
@@ -138,155 +93,6 @@ LEAN_PATH = True
 WARM_TOOLS = WarmTools(
     lean_move=LeanMove, refine=lean_refine, structure_of=structure_from_samples, newton=newton_from_guess
 )
-
-
-def _smoothed_start(
-    sh: Shooting, T_low: float, T_init: float, levels: tuple[float, ...] = SMOOTHING, nuh: np.ndarray | None = None
-) -> tuple[np.ndarray, float]:
-    """Co-state direction (scaled) and time (s) from smoothed inner problems.
-
-    Cheap, robust and blind to the number of switches: decreasing smoothing
-    (``levels``) brings ``T`` close to the optimum.  The first stage of
-    :func:`_solve`, and the guesses of the fast path.  ``nuh``: a warm start
-    (scaled), if any.  Leaves ``sh`` unchanged.
-    """
-    T = max(T_init, T_low, 1e-300)
-    for eps in levels:
-        lo, hi = T_low, math.inf
-        for _ in range(SMOOTH_OUTER):
-            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
-            if m > 0.0 and abs(math.log(m)) < 1e-3:
-                break
-            T, lo, hi = bracketed_step(T, m, dm, lo, hi)
-    return nuh, T
-
-
-def _solve(
-    sh: Shooting, T_low: float, T_init: float, start: tuple[np.ndarray, float] | None = None
-) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, float]:
-    """Optimal time and co-state direction.  ``T_low`` is a proved lower bound (may be 0).
-
-    ``start``: the result of :func:`_smoothed_start` for the same ``sh``,
-    ``T_low`` and ``T_init``, if already computed (it is deterministic).
-
-    1. A smoothed, discretised version of the convex inner problem at the
-       first guess, then the exact one (trust region), give a co-state
-       direction and so a switch structure (any number of switches).
-    2. Newton on switch times, co-state and ``T`` together converges
-       quadratically from that structure; wrong structures are corrected from
-       the zeros of the switching function (:func:`structure_newton`).
-    3. If that fails, the exact inner problem drives a safeguarded Newton
-       iteration on ``log m(T) = 0`` until ``m`` is within 1e-3 of 1 and step 2
-       is tried again; as a last resort the nested iteration runs to full
-       accuracy and a joint Newton polish on ``(nu, T)`` finishes.
-    The caller certifies whatever comes out.
-    """
-    # smoothed inner problems (cheap, robust, any structure) bring T close to
-    # the optimum ...
-    nuh, T = start if start is not None else _smoothed_start(sh, T_low, T_init)
-    # ... where the exact inner problem gives the switch structure
-    nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=30, rtol=1e-12)
-    nuh = rescale(sh, nuh, T)
-    found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
-    if found is not None:
-        return found
-    # otherwise, from the first guess again: exact inner problems on T, trying
-    # the switch-time Newton whenever m comes markedly closer to 1
-    T = max(T_init, T_low, 1e-300)
-    nuh, _, _ = inner_smooth(sh, T, None, SMOOTHING[0])
-    lo, hi = T_low, math.inf
-    tried_gap = math.inf  # |m - 1| at the last switch-time Newton attempt
-    for _ in range(60):
-        if sh.evaluations > evaluation_budget(sh.sys, T):  # bounded work: the structure search takes over
-            return nuh, T, e.roots, e.signs, math.inf
-        before = sh.evaluations
-        nuh, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
-        # an unconverged inner solve gives an upper bound on m(T) only: m < 1 proves T short,
-        # m >= 1 proves nothing; solve on at this T before the bracket is narrowed from above
-        # (a bracket closed on an unproved bound made the iteration crawl to a wrong T and
-        # refuse valid 6-8 mode models after 400 evaluations)
-        restarted = False
-        while m >= 1.0 and sh.evaluations - before > 15 and sh.evaluations <= evaluation_budget(sh.sys, T):
-            before, m_before = sh.evaluations, m
-            nuh_next, m, dm, e = inner_exact(sh, T, nuh, max_iter=15, rtol=1e-9)
-            if not m < m_before * (1.0 - 1e-9):  # no progress (a collapsed trust region)
-                if restarted:
-                    break
-                # once from the smoothed problem's minimiser at this T (a fresh start)
-                restarted = True
-                nuh_next, m, dm, e = inner_exact(
-                    sh, T, inner_smooth(sh, T, nuh, SMOOTHING[-1])[0], max_iter=15, rtol=1e-9
-                )
-            nuh = nuh_next
-        if e.roots.size > MAX_SWITCHES:
-            raise SolverError(
-                f"the optimal move needs about {e.roots.size} switches over {T:.4g} s (more than "
-                f"{MAX_SWITCHES}): the actuator is too weak for this state; raise u_max or start "
-                "from a calmer state"
-            )
-        gap = abs(m - 1.0)
-        # the switch structure is often right long before T is: try the
-        # switch-time Newton whenever m has come markedly closer to 1
-        if gap < 0.5 and gap < 0.25 * tried_gap or tried_gap == math.inf:
-            tried_gap = gap
-            nuh = rescale(sh, nuh, T)
-            found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
-            if found is not None:
-                return found
-        if gap <= 1e-11:
-            break
-        T, lo, hi = bracketed_step(T, m, dm, lo, hi)
-    if sh.evaluations > evaluation_budget(sh.sys, T):
-        return nuh, T, e.roots, e.signs, math.inf
-    # last resort: full-accuracy nested iteration, then the joint Newton polish
-    nuh, T = outer_newton(lambda T, v: inner_exact(sh, T, v, rtol=1e-15)[:3], T_low, T, nuh, tol=1e-11, max_outer=20)
-    nuh = rescale(sh, nuh, T)
-    nuh, T, e, r = polish(sh, nuh, T)
-    if r > POLISH_TOL:  # sharpen with switch times as unknowns, from the polished structure
-        found = structure_newton(sh, nuh, T, e.roots, float(e.signs[0]), T_low)
-        if found is not None:
-            return found
-    return nuh, T, e.roots, e.signs, r
-
-
-@dataclass
-class BangBangSolution:
-    """Raw solver output for a linear system in time-to-go form.
-
-    Attributes
-    ----------
-    nu : ndarray
-        Dual direction ``-lambda(T)`` (any positive scale).
-    duration : float
-        Optimal time ``T`` (s).
-    switch_times : ndarray
-        Forward switching times (s).
-    levels : ndarray
-        Input on each interval (``+-u_max``).
-    """
-
-    nu: np.ndarray
-    duration: float
-    switch_times: np.ndarray
-    levels: np.ndarray
-
-
-def solve_bang_bang(system, x0: np.ndarray, u_max: float, T_low: float, T_init: float) -> BangBangSolution:
-    """Time-optimal bang-bang input bringing ``x0`` to the origin, for any system object.
-
-    ``system`` must offer what :class:`ModalResponse` offers (``n``, ``A()``,
-    ``B()``, ``expm_B``, ``input_integral``, ``expm_x``, ``A_x``,
-    ``switching(nu, tau, order=k)``, ``switching_magnitude``,
-    ``switching_derivative_bound`` and an array ``wd`` of its oscillation
-    frequencies, used for the grid).  ``T_low`` must be a proved lower bound
-    (0 if none); ``T_init`` a first guess.  The result is not yet checked:
-    simulate it and certify it (:func:`~flexmotion_ros.core.certificate.certify`).
-    """
-    x0 = np.asarray(x0, dtype=float)
-    sh = Shooting(system, x0, u_max, max(T_init, 1e-300))
-    nuh, T, roots, signs, _ = _solve(sh, T_low, T_init)
-    switch_times = np.clip(np.sort(T - roots), 0.0, T)
-    return BangBangSolution(nuh / sh.s, float(T), switch_times, u_max * signs[::-1])
 
 
 def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart | None = None) -> BangBangProfile:
@@ -364,7 +170,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
             return lean
     sh = Shooting(system, x0, um, T_init)
     T_lb = T_low * (1.0 - 1e-12)
-    start = _smoothed_start(sh, T_lb, T_init)
+    start = smoothed_start(sh, T_lb, T_init)
     fast_error = None
     if FAST_PATH:
         fast, fast_error = _fast_path(problem, system, copy.copy(sh), start, t0, T_low)
@@ -374,7 +180,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
                 fast.extra["fast_path_error"] = fast_error
             return fast
     # the full solver, exactly as without the fast path (``sh`` is untouched)
-    nuh, T, roots, signs, residual = _solve(sh, T_lb, T_init, start)
+    nuh, T, roots, signs, residual = solve_costate(sh, T_lb, T_init, start)
     try:
         profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
     except SolverError as miss:
@@ -398,6 +204,19 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     return profile
 
 
+def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:
+    """Relative final-state error of the rigid body's optimum on the whole machine (0: it is optimal)."""
+    if rigid.duration == 0.0 or system.n == system.r:
+        return 0.0 if system.n == system.r else math.inf
+    T = rigid.duration
+    roots = np.sort(T - rigid.switch_times)
+    signs = np.sign(rigid.levels[::-1])
+    G = system.input_integral(np.append(roots, T))
+    jump = 2.0 * u_max * signs[:-1]
+    xT = system.expm_x(T, x0) + u_max * signs[-1] * G[-1] + jump @ G[:-1]
+    return float(np.max(np.abs(xT) / state_scale(system, x0, u_max, T)))
+
+
 def _fast_path(
     problem: MoveProblem,
     system: ModalResponse,
@@ -416,34 +235,14 @@ def _fast_path(
     final-state check and the certificate's full sign test pass (not merely
     the gap to the rigid bound: that close to it, the full solver decides).
 
-    Parameters
-    ----------
-    problem : MoveProblem
-        The move (model, ``u_max``, initial state, target).
-    system : ModalResponse
-        Its closed-form responses (state with or without the position).
-    sh : Shooting
-        The shooting problem ``start`` was computed for; modified (rescaled):
-        pass a copy.
-    start : tuple of (ndarray, float)
-        :func:`_smoothed_start`'s result: scaled co-state direction
-        (``nu * sh.s``, dimensionless) and duration guess (s).
-    t0 : float
-        :func:`time.perf_counter` at the start of planning (s), for
-        ``solve_time_s``.
-    T_low : float
-        Proved lower bound on the optimal time (s): the rigid body's.
-
-    Returns
-    -------
-    profile : BangBangProfile or None
-        The certified profile, with ``extra["solver_path"] = "fast"`` and
-        ``extra["fast_path_candidates"]``; None if no candidate passed (the
-        caller then runs the full solver).
-    error : str or None
-        ``repr`` of an exception raised inside the fast path (a bug: the
-        caller falls back to the full solver and records it in
-        ``extra["fast_path_error"]``), else None.
+    ``sh`` is the shooting problem ``start`` (:func:`smoothed_start`'s scaled
+    co-state and duration, s) was computed for, modified here (pass a copy);
+    ``t0`` the ``perf_counter`` at the start of planning (s); ``T_low`` the
+    rigid body's proved lower bound (s).  Returns ``(profile, error)``: the
+    certified profile (``extra["solver_path"] = "fast"``,
+    ``extra["fast_path_candidates"]``) or None (the full solver runs), and
+    the ``repr`` of an exception raised inside (a bug: recorded by the
+    caller in ``extra["fast_path_error"]``) or None.
     """
 
     candidates = 0
@@ -471,7 +270,7 @@ def _fast_path(
             # that the first level rounds off show up as sign changes (a
             # structure already tried is not tried again)
             sh = copy.copy(sh0)
-            nuh, T = _smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0])
+            nuh, T = smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0])
             profile = newton_from_guess(sh, rescale(sh, nuh, T), T, check, tried, max_switches=MAX_SWITCHES)
     except Exception as exc:  # noqa: BLE001 - whatever went wrong, the full solver decides
         return None, repr(exc)
@@ -482,7 +281,12 @@ def _fast_path(
 
 
 def _lean_path(
-    problem: MoveProblem, system: ModalResponse, x0: np.ndarray, t0: float, T_low: float, T_init: float
+    problem: MoveProblem,
+    system: ModalResponse,
+    x0: np.ndarray,
+    t0: float,
+    T_low: float,
+    T_init: float,
 ) -> tuple[BangBangProfile | None, str | None]:
     """The fast path on fused closed forms (:mod:`.lean`); None if it finds no certified profile.
 
@@ -524,19 +328,6 @@ def _lean_path(
         profile.extra["fast_path_stage"] = "lean"
         profile.extra["fast_path_candidates"] = candidates
     return profile, None
-
-
-def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:
-    """Relative final-state error of the rigid body's optimum on the whole machine (0: it is optimal)."""
-    if rigid.duration == 0.0 or system.n == system.r:
-        return 0.0 if system.n == system.r else math.inf
-    T = rigid.duration
-    roots = np.sort(T - rigid.switch_times)
-    signs = np.sign(rigid.levels[::-1])
-    G = system.input_integral(np.append(roots, T))
-    jump = 2.0 * u_max * signs[:-1]
-    xT = system.expm_x(T, x0) + u_max * signs[-1] * G[-1] + jump @ G[:-1]
-    return float(np.max(np.abs(xT) / state_scale(system, x0, u_max, T)))
 
 
 def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low=None) -> BangBangProfile:

@@ -1,6 +1,6 @@
 """Fast path of the time-optimal planner: guess a switch structure, Newton, certify.
 
-The full solver (:func:`~flexmotion_ros.core.time_optimal._solve`) reaches the
+The full solver (:func:`~flexmotion_ros.core.time_optimal.costate_solver.solve_costate`) reaches the
 switch structure through the *exact* convex inner problem (proved root
 isolation at every trust-region step), which dominates its cost.  Most moves
 do not need it: the sign changes of the switching function of the *smoothed*

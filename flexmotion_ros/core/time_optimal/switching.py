@@ -219,10 +219,15 @@ def isolate_roots(
     cells = _cells_to_examine(system, nu, grid, noise)
     if cells is None:
         points = grid
+        D = np.array(system.switching(nu, points, order=K))  # (K+1, len(points))
     else:
         idx = _cell_points(cells)  # grid points the kept cells need
         points = grid[idx]
-    D = np.array(system.switching(nu, points, order=K))  # (K+1, len(points))
+        if idx.size >= SHARED_BASIS_SHARE * grid.size and not grid.flags.writeable and _takes_rows(system):
+            # most of a planner's grid: its trigonometric basis once per T, not per co-state
+            D = np.array(system.switching(nu, grid, order=K, rows=idx))
+        else:
+            D = np.array(system.switching(nu, points, order=K))
     # a zero sitting on an interior grid point (symmetric profiles put one at
     # T/2) has a sign decided by rounding: move such points off it (a point
     # next to a dropped cell is not near a zero: that cell's proof covers the move)
@@ -301,6 +306,18 @@ def isolate_roots(
     start = _hermite_root(a, b, Sa, Sb, np.concatenate(br_da), np.concatenate(br_db))
     roots = np.sort(refine_roots(fS, a, b, Sa, Sb, mag0, start=start))
     return RootIsolation(roots, sign0, unproved)
+
+
+#: When the cells left to examine need at least this share of a planner's (read-only,
+#: cached) grid, the switching function is evaluated from the whole grid's basis
+#: (``ModalResponse.switching(..., rows=)``): computed once per duration, shared by
+#: the co-states of every evaluation at that duration.
+SHARED_BASIS_SHARE = 0.25
+
+
+def _takes_rows(system) -> bool:
+    """Whether ``system.switching`` evaluates a subset of a grid from the grid's basis (``rows=``)."""
+    return bool(getattr(system, "SWITCHING_TAKES_ROWS", False))
 
 
 #: Cells per block of the zero-free test of :func:`_cells_to_examine`.

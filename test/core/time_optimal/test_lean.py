@@ -201,7 +201,7 @@ def test_more_switches_than_the_dense_limit_are_refused_at_once():
 
 
 # ------------------------------------------------------------- structure guess
-def test_near_zero_thresholds_are_the_fast_paths():
+def test_near_zero_thresholds_are_the_time_optimal():
     assert (lean.NEAR_ZERO, lean.VERY_NEAR_ZERO) == (structure_guess.NEAR_ZERO, structure_guess.VERY_NEAR_ZERO)
 
 

@@ -23,8 +23,8 @@ from flexmotion_ros.core import (
     plan_time_optimal,
     rest_to_rest,
 )
+from flexmotion_ros.core.time_optimal import costate_solver, structure_guess
 from flexmotion_ros.core.time_optimal import solver as time_optimal
-from flexmotion_ros.core.time_optimal import structure_guess
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
 DAMPED = ModalModel(b0=1.0, c=-0.3, omega=[3.0, 7.0], zeta=[0.1, 0.05], b=[0.8, -0.5])
@@ -211,14 +211,14 @@ def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch
         return failing(*args, **kwargs) if plan_state["fast"] else real(*args, **kwargs)
 
     plan_state = {"fast": True}
-    real_solve = time_optimal._solve
+    real_solve = time_optimal.solve_costate
 
     def solve(*args, **kwargs):
         plan_state["fast"] = False
         return real_solve(*args, **kwargs)
 
     monkeypatch.setattr(time_optimal, "certify", spy)
-    monkeypatch.setattr(time_optimal, "_solve", solve)
+    monkeypatch.setattr(time_optimal, "solve_costate", solve)
     p = plan_time_optimal(problem)
     assert len(calls) >= 2  # the fast path's candidate was certified (and rejected)
     assert p.extra["solver_path"] == "full"
@@ -237,10 +237,12 @@ def test_the_fast_path_gives_up_beyond_max_switches(monkeypatch):
 
     monkeypatch.setattr(structure_guess, "refine_switches", spy)
     monkeypatch.setattr(time_optimal, "MAX_SWITCHES", 2)
+    monkeypatch.setattr(costate_solver, "MAX_SWITCHES", 2)
     p = plan_time_optimal(problem)
     assert p.extra["solver_path"] == "full"
     assert "fast_path_error" not in p.extra
     assert all(size <= 2 for size in calls)  # no Newton run on a structure over the limit
     assert p.certified and p.switch_times.size == 3
     monkeypatch.setattr(time_optimal, "MAX_SWITCHES", 3)
+    monkeypatch.setattr(costate_solver, "MAX_SWITCHES", 3)
     assert plan_time_optimal(problem).extra["solver_path"] == "fast"

@@ -15,9 +15,22 @@
   switching function's magnitude bound grew like ``T |nu_p|`` and hid every
   block (the structure guess sampled a million points); the coarse-to-fine
   block test keeps exactly the blocks the flat 16-cell test keeps.
+* Case 1177 (6 modes, moving start) was refused on b52bcae ("missed the
+  target: relative final-state error 9.4e-04" after 2.4 s): when the
+  switch-time Newton failed at the smoothed start, the full solver
+  restarted its iteration on ``T`` from the first guess (rigid time plus a
+  quarter period) and walked back up; from the smoothed start's exact solve
+  it plans, certified.  Case 544 (4 modes, a 21-switch stop): the same
+  change, 104 -> 82 exact co-state evaluations.
+* The smoothed warm start of a long damped move sampled the fastest mode's
+  spacing over the whole move, long after that mode had rung out (case 3220:
+  288,471 responses ``e^{A tau} B`` per plan on 8250f90, 23,131 with the
+  graded grid of ``reachable_set.graded_grid``), same optimum.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from reference_solutions import bang_bang_final_error as _error
@@ -26,6 +39,7 @@ from reference_solutions import rigid_min_time
 from flexmotion_ros.core import ModalModel, MoveProblem
 from flexmotion_ros.core.results import SolverPath
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
+from flexmotion_ros.core.time_optimal import reachable_set
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 from flexmotion_ros.core.time_optimal.switching import EXCLUSION_BLOCK, examined_points, sample_grid
 
@@ -77,6 +91,39 @@ CASE_3220 = (
     [0.0] * 8,
     -14393.525398225771,
 )
+CASE_1177 = (
+    ModalModel(
+        b0=0.1641767305893879,
+        c=0.0,
+        omega=(0.8579603362282243, 1.0245103391392372, 1.8604763979597603, 2.027724726253874, 3.256623501402939,
+               3.77060423761445),
+        zeta=(0.08226517712081084, 0.20665054338100808, 0.17735600550348776, 0.28248122252691793,
+              0.0322075301396198, 0.23827889220449033),
+        b=(1.5719134816405116, -1.7493853200503122, 1.8231216036123452, 0.7638862379829888, 1.3326670081729342,
+           -0.1424990655138402),
+    ),
+    1.1121703228270714,
+    [0.0, 0.0001458901037798095, -0.0006383842671191745, 0.0008720419166129725, 0.0019955953768959773,
+     -0.0021577423551522876, 0.0006468355871137242, -0.00030207992160677263, 8.314102421546099e-05,
+     -1.8816787377079312e-05, -3.981124363298618e-05, 0.0005232793938310457, -1.1319858700895229e-05,
+     -4.5263555052621436e-05],
+    0.0003142151148342481,
+)  # fmt: skip
+
+CASE_544 = (
+    ModalModel(
+        b0=3.8608012586512186,
+        c=0.0,
+        omega=(1.1389314253799518, 1.3787583070060463, 10.350484889456514, 15.049025761624833),
+        zeta=(0.006140501339267091, 0.2283034503741524, 0.16626450200594192, 0.044956266576505484),
+        b=(-0.48586656138690204, -1.6210497459081104, -0.8912669359591011, 1.376362583813724),
+    ),
+    2.524063752054139,
+    [0.0, -195.5609612732784, 17.0687682212635, 26.76067280334388, -4.054797193867586, -12.585748084229175,
+     -0.16273615137275282, -5.510378281528425, -0.3394391492202559, 5.585994762730371],
+    -204.00461511741457,
+)  # fmt: skip
+
 #: Its certified optimum on 7d8f7de (full solver), s.
 T_3220 = 1945.4557415608535
 
@@ -103,6 +150,21 @@ def test_a_six_mode_move_refused_for_an_unproved_bracket_plans_certified():
 def test_an_eight_mode_moving_start_refused_for_an_unproved_bracket_plans_certified():
     problem = _problem(CASE_2714)
     _check(problem, plan_time_optimal(problem))
+
+
+def test_a_six_mode_moving_start_refused_after_a_restart_from_the_first_guess_plans_certified():
+    problem = _problem(CASE_1177)
+    _check(problem, plan_time_optimal(problem))
+
+
+def test_a_failed_switch_newton_continues_from_the_smoothed_start(monkeypatch):
+    # the uniform warm start of b52bcae (with the graded one the fast path answers this move)
+    monkeypatch.setattr(reachable_set, "SMOOTH_DECAY", math.inf, raising=False)
+    problem = _problem(CASE_544)
+    profile = plan_time_optimal(problem)
+    _check(problem, profile)
+    assert profile.extra["solver_path"] is SolverPath.FULL
+    assert profile.iterations <= 90  # exact co-state evaluations: 104 from the first guess again (b52bcae)
 
 
 def test_a_long_damped_move_is_certified_by_switch_newton_at_the_rounding_floor():
@@ -140,3 +202,19 @@ def test_zero_free_blocks_of_a_long_move_with_friction_are_found_coarse_to_fine(
     for i in gaps:
         seg = system.switching(nu, np.linspace(kept[i], kept[i + 1], 2001))
         assert np.all(np.sign(seg) == np.sign(seg[0]))
+
+
+def test_the_warm_start_of_a_long_damped_move_samples_only_where_modes_ring(monkeypatch):
+    problem = _problem(CASE_3220)
+    real = ModalResponse.expm_B
+    sampled = []
+
+    def counting(self, tau):
+        sampled.append(np.size(tau))
+        return real(self, tau)
+
+    monkeypatch.setattr(ModalResponse, "expm_B", counting)
+    profile = plan_time_optimal(problem)
+    _check(problem, profile)
+    assert abs(profile.duration - T_3220) <= 1e-12 * T_3220  # the same optimum
+    assert sum(sampled) < 60_000  # 288,471 on 8250f90: the fastest mode's spacing over all 1945 s
