@@ -56,9 +56,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from ..errors import GoalError, SolverError
+from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..sampled.lp_tools import correct_arrival
 from ..sampled.sparse_rows import SparseRows
@@ -72,6 +72,11 @@ MARGIN = 1e-7
 MAX_ROW_ROUNDS = 10
 #: Above this many free samples (with state chains) the interior-point method beats the simplex.
 IPM_SAMPLES = 300
+#: HiGHS reads a bound beyond this as infinite, and refuses a row whose bound is beyond it on the wrong side.
+HIGHS_INFINITY = 1e20
+#: The verdicts that decide a sample count; ``linprog``'s names of the methods, for messages.
+DECIDED = (LpStatus.OPTIMAL, LpStatus.INFEASIBLE)
+METHOD_NAMES = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
 #: Row kinds in :class:`LPSolution`.
 STATE, CUT, SLEW = 0, 1, 2
 
@@ -428,34 +433,51 @@ class LimitLP:
             cost[tvar] = 1.0
         A_eq, b_eq = E.system(nv)
         A_ub, b_ub = U.system(nv)
-        method = "highs-ipm" if F.size > IPM_SAMPLES and self.blocks else "highs"
-        opts = dict(HIGHS_OPTIONS)
-        if math.isfinite(self.deadline):  # the planner's budget bounds every single LP too
-            opts["time_limit"] = max(0.5, self.deadline - time.perf_counter())
-        kw = dict(A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=np.column_stack([lo, hi]), options=opts)
-        res = linprog(cost, method=method, **kw)
-        tried = [f"{method}: {res.message}"]
-        if res.status not in (0, 2):
+        if (b_ub.size and np.min(b_ub) <= -HIGHS_INFINITY) or (b_eq.size and np.max(np.abs(b_eq)) >= HIGHS_INFINITY):
+            # a row scaled by a state this rate cannot steer (omega dt near a multiple of 2 pi) asks for more
+            # than HiGHS's infinity: HiGHS refuses the model, and linprog called that "infeasible" too; a proof
+            # resting on it is confirmed by the independent formulation (:mod:`.certify`)
+            self.infeasible_verdicts += 1
+            self.infeasible_method = "a limit row past HiGHS's infinity (1e20)"
+            return None
+        method = LpMethod.IPM if F.size > IPM_SAMPLES and self.blocks else LpMethod.CHOOSE
+        limit = max(0.5, self.deadline - time.perf_counter()) if math.isfinite(self.deadline) else None
+        # the planner's budget bounds every single LP too
+        lp = dict(
+            cost=cost,
+            A_ub=A_ub,
+            b_ub=b_ub,
+            A_eq=A_eq,
+            b_eq=b_eq,
+            lower=lo,
+            upper=hi,
+            time_limit_s=limit,
+            **HIGHS_OPTIONS,
+        )
+        res = solve_lp(**lp, method=method)
+        tried = [f"{METHOD_NAMES[method]}: {res.message}"]
+        if res.status not in DECIDED:
             # neither optimal nor infeasible (e.g. "HiGHS Status 0: Not Set", an iteration or time limit):
             # ask the other methods, then the dual simplex without presolve (it sees the rows unscaled)
+            ds, ipm = LpMethod.DUAL_SIMPLEX, LpMethod.IPM
             for alt, presolve in (
-                ("highs-ds" if method != "highs-ds" else "highs-ipm", True),
-                ("highs-ipm" if method == "highs" else "highs-ds", True),
-                ("highs-ds", False),
+                (ds if method is not ds else ipm, True),
+                (ipm if method is LpMethod.CHOOSE else ds, True),
+                (ds, False),
             ):
-                res = linprog(cost, method=alt, **{**kw, "options": {**opts, "presolve": presolve}})
-                tried.append(f"{alt}{'' if presolve else ' (no presolve)'}: {res.message}")
-                if res.status in (0, 2):
+                res = solve_lp(**lp, method=alt, presolve=presolve)
+                tried.append(f"{METHOD_NAMES[alt]}{'' if presolve else ' (no presolve)'}: {res.message}")
+                if res.status in DECIDED:
                     method = alt
                     break
-        verdict = "interior point" if method == "highs-ipm" else "dual simplex"
-        if res.status == 2:
+        verdict = "interior point" if method is LpMethod.IPM else "dual simplex"
+        if res.status is LpStatus.INFEASIBLE:
             # "infeasible" is a verdict of one method on this formulation; where it decides a proof,
             # the planner has it confirmed by an independent formulation (:mod:`.certify`)
             self.infeasible_verdicts += 1
             self.infeasible_method = verdict
             return None
-        if res.status != 0:
+        if res.status is not LpStatus.OPTIMAL:
             raise LPUndecided(f"limited planner: linear program at {K} samples undecided ({'; '.join(tried)})")
         x = res.x
         t = float(x[0])
@@ -467,8 +489,8 @@ class LimitLP:
             v[a:b_] = levels[r] + (t * sl * seg.slope[r] * np.arange(b_ - a) if sl is not None else 0.0)
         meta = U.meta_array()
         keep_rows = meta[:, 0] >= 0
-        lam = -np.asarray(res.ineqlin.marginals, float)[keep_rows] if U.n else np.zeros(0)
-        nu = np.asarray(res.eqlin.marginals, float)[:n_arrival] * row_scale
+        lam = -np.asarray(res.ub_marginals, float)[keep_rows] if U.n else np.zeros(0)
+        nu = np.asarray(res.eq_marginals, float)[:n_arrival] * row_scale
         return LPSolution(
             K, self.um * v, t, nu, meta[keep_rows], U.s_array()[keep_rows], np.maximum(lam, 0.0), seg, levels
         )
