@@ -22,6 +22,13 @@ modes) and a fixed set of rest-to-rest moves, prints one table:
   time, its IPOPT solve time (NLP construction excluded) and
   ``T_casadi - T*``.
 
+``--ab-tree PATH`` adds a table of the continuous certified planner of
+another checkout (e.g. ``/work/main``) against this one: two worker
+processes, one importing each tree's package, plan the same moves cold in
+alternating repeats (the same load for both), and the table gives both
+medians, their ratio, and whether the two optima agree (``|dT| / T``, switch
+times ``/ T``, certificate status).
+
 ``--lean-ab`` adds a second table: the continuous and ZOH latencies with the
 time-optimal planner's lean path off (``time_optimal.LEAN_PATH = False``: the
 planner before it) and on, repeats alternating between the two so that both
@@ -30,6 +37,7 @@ see the same load, and whether both gave the same certified optimum.
 Usage::
 
     OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100] [--lean-ab]
+        [--ab-tree /work/main]
 """
 
 from __future__ import annotations
@@ -41,8 +49,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
 import itertools
+import json
 import math
 import platform
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -269,6 +280,97 @@ def timed_ab(fn, repeats: int):
     return {k: np.array(v) for k, v in out.items()}, result
 
 
+def worker() -> None:
+    """``--worker``: plan ``n rigid_time`` moves read from stdin, one JSON line of latency and result each."""
+    for line in sys.stdin:
+        n, tr = line.split()
+        model = beam(int(n))
+        problem = rest_to_rest(model, U_MAX, move_for(model, float(tr)))
+        _simulation._step_cached.cache_clear()
+        t0 = time.perf_counter()
+        prof = plan_time_optimal(problem)
+        dt = time.perf_counter() - t0
+        reply = {
+            "t": dt,
+            "T": prof.duration,
+            "sw": [float(x) for x in prof.switch_times],
+            "status": str(prof.certificate.status),
+            "lean": prof.extra.get("fast_path_stage") == "lean",
+        }
+        print(json.dumps(reply), flush=True)
+
+
+def _start_worker(tree: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    return subprocess.Popen(
+        [sys.executable, os.path.abspath(__file__), "--worker"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def tree_ab(other: str, modes: list, repeats: int) -> None:
+    """``--ab-tree``: this checkout's continuous planner against ``other``'s, alternating repeats."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    workers = {"other": _start_worker(other), "this": _start_worker(here)}
+
+    def ask(name: str, n: int, tr: float) -> dict:
+        w = workers[name]
+        w.stdin.write(f"{n} {tr}\n")
+        w.stdin.flush()
+        return json.loads(w.stdout.readline())
+
+    head = (
+        f"{'modes':>5} {'move m':>8} {'other ms':>9} {'this ms':>8} {'ratio':>6} {'|dT|/T':>8} "
+        f"{'max|dsw|/T':>10} {'status':>8} {'same':>5} {'lean':>5}"
+    )
+    print()
+    print(f"# continuous certified planner: {other} (other) vs {here} (this), worker processes, alternating repeats")
+    print(head)
+    print("-" * len(head))
+    pooled = {"other": [], "this": []}
+    worst = 0.0
+    try:
+        for n in modes:
+            for tr in RIGID_TIMES:
+                for name in workers:  # warm-up: imports, first calls
+                    ask(name, n, tr)
+                t = {"other": [], "this": []}
+                res = {}
+                for k in range(repeats):
+                    order = ("other", "this") if k % 2 == 0 else ("this", "other")
+                    for name in order:
+                        res[name] = ask(name, n, tr)
+                        t[name].append(res[name]["t"])
+                a, b = res["other"], res["this"]
+                same_shape = len(a["sw"]) == len(b["sw"])
+                dT = abs(a["T"] - b["T"]) / a["T"]
+                dsw = (
+                    float(np.max(np.abs(np.subtract(a["sw"], b["sw"])), initial=0.0)) / a["T"]
+                    if same_shape
+                    else math.inf
+                )
+                same = same_shape and a["status"] == b["status"] and dT <= 1e-12 and dsw <= 1e-12
+                worst = max(worst, dT, dsw)
+                for name in t:
+                    pooled[name].extend(t[name])
+                mo, mt = 1e3 * np.median(t["other"]), 1e3 * np.median(t["this"])
+                print(
+                    f"{n:>5} {move_for(beam(n), tr):>8.4g} {mo:>9.2f} {mt:>8.2f} {mo / mt:>6.2f} {dT:>8.1e} "
+                    f"{dsw:>10.1e} {b['status']:>8} {str(same):>5} {str(b['lean']):>5}",
+                    flush=True,
+                )
+    finally:
+        for w in workers.values():
+            w.stdin.close()
+            w.wait()
+    print("-" * len(head))
+    mo, mt = 1e3 * np.median(pooled["other"]), 1e3 * np.median(pooled["this"])
+    print(f"# pooled median: other {mo:.2f} ms, this {mt:.2f} ms ({mo / mt:.2f}x); worst |dT|/T or |dsw|/T {worst:.1e}")
+
+
 def lean_ab_table(rows: list) -> None:
     """The A/B table of ``--lean-ab`` (see the module docstring)."""
     head = (
@@ -315,7 +417,16 @@ def main() -> None:
     ap.add_argument("--modes", type=int, nargs="*", default=list(MODES))
     ap.add_argument("--no-casadi", action="store_true")
     ap.add_argument("--lean-ab", action="store_true", help="also time the planner with its lean path off and on")
+    ap.add_argument("--ab-tree", help="also time the continuous planner of another checkout against this one")
+    ap.add_argument("--ab-only", action="store_true", help="with --ab-tree: only that table")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.worker:
+        worker()
+        return
+    if args.ab_tree and args.ab_only:
+        tree_ab(args.ab_tree, [n for n in args.modes if n <= 3], args.repeats)
+        return
     ab_rows = []
 
     print(
@@ -420,6 +531,8 @@ def main() -> None:
             f"in this run: {med * 1e3:.2f} ms vs IPOPT median {ipopt * 1e3:.0f} ms, {ipopt / med:.0f}x -> "
             f"{'MET' if med < 1e-3 and ipopt / med >= 100.0 else 'NOT MET'}"
         )
+    if args.ab_tree:
+        tree_ab(args.ab_tree, [n for n in args.modes if n <= 3], args.repeats)
 
 
 if __name__ == "__main__":

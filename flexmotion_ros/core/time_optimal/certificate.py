@@ -49,6 +49,8 @@ from .switching import isolate_roots, root_tolerance, sample_grid
 #: Rounding of ``S`` in units of ``eps`` times the sum of its terms' magnitudes
 #: (:meth:`switching_magnitude`): a sign margin at or below it is not a proof.
 SIGN_ROUNDING = 16.0
+#: The geometric grid of :func:`end_gap` on ``[1e-16, 1]`` (times ``T``), built once.
+_END_GRID = np.geomspace(1e-16, 1.0, 257)
 
 
 def certify(
@@ -128,9 +130,10 @@ def _certify_with(
         near = dist < 0.25 * h
         near[[0, -1]] = False
         grid = grid[~near]
-    iso = isolate_roots(system, nu, T, grid)
+    magnitude = system.switching_magnitude(nu, T)[0]  # the rounding unit of S, asked for three times
+    iso = isolate_roots(system, nu, T, grid, magnitude=magnitude)
     unproved = iso.unproved
-    tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL)
+    tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL, magnitude=magnitude)
     matched = np.zeros(tau_sw.size, dtype=bool)
     extra = 0
     for z in iso.roots:
@@ -221,7 +224,7 @@ def _certify_with(
     if not sign_ok:
         reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
     # a sign test below what S can be evaluated to (rounding of its terms) proves nothing
-    resolution = SIGN_ROUNDING * np.finfo(float).eps * system.switching_magnitude(nu, T)[0] / s_max
+    resolution = SIGN_ROUNDING * np.finfo(float).eps * magnitude / s_max
     below_rounding = sign_ok and min_margin <= resolution
     if below_rounding:
         reasons.append(f"sign margin {min_margin:.1e} below the switching function's rounding {resolution:.1e}")
@@ -310,7 +313,7 @@ def end_gap(
         hit = int(np.searchsorted(area, budget, side="left"))
         return float(tau[hit + 1]) if hit < area.size else float(T)
 
-    tau = np.concatenate([[0.0], T * np.geomspace(1e-16, 1.0, 257)])
+    tau = np.concatenate([[0.0], T * _END_GRID])
     first = reach(tau)
     grid = sample_grid(system, T, density=2.0)
     fine = np.unique(np.concatenate([tau[tau <= 2.0 * first], grid[grid <= 2.0 * first], [min(2.0 * first, T)]]))
