@@ -26,7 +26,8 @@ modes) and a fixed set of rest-to-rest moves, prints one table:
 another checkout (e.g. ``/work/main``) against this one: two worker
 processes, one importing each tree's package, plan the same moves cold in
 alternating repeats (the same load for both), and the table gives both
-medians, their ratio, and whether the two optima agree (``|dT| / T``, switch
+medians (wall and the worker thread's CPU time, the latter less
+sensitive to other processes on the machine), their ratios, and whether the two optima agree (``|dT| / T``, switch
 times ``/ T``, certificate status).
 
 ``--lean-ab`` adds a second table: the continuous and ZOH latencies with the
@@ -287,11 +288,13 @@ def worker() -> None:
         model = beam(int(n))
         problem = rest_to_rest(model, U_MAX, move_for(model, float(tr)))
         _simulation._step_cached.cache_clear()
+        c0 = time.thread_time()
         t0 = time.perf_counter()
         prof = plan_time_optimal(problem)
         dt = time.perf_counter() - t0
         reply = {
             "t": dt,
+            "cpu": time.thread_time() - c0,
             "T": prof.duration,
             "sw": [float(x) for x in prof.switch_times],
             "status": str(prof.certificate.status),
@@ -323,7 +326,8 @@ def tree_ab(other: str, modes: list, repeats: int) -> None:
         return json.loads(w.stdout.readline())
 
     head = (
-        f"{'modes':>5} {'move m':>8} {'other ms':>9} {'this ms':>8} {'ratio':>6} {'|dT|/T':>8} "
+        f"{'modes':>5} {'move m':>8} {'other ms':>9} {'this ms':>8} {'ratio':>6} "
+        f"{'other cpu':>9} {'this cpu':>8} {'ratio':>6} {'|dT|/T':>8} "
         f"{'max|dsw|/T':>10} {'status':>8} {'same':>5} {'lean':>5}"
     )
     print()
@@ -331,6 +335,7 @@ def tree_ab(other: str, modes: list, repeats: int) -> None:
     print(head)
     print("-" * len(head))
     pooled = {"other": [], "this": []}
+    pooled_cpu = {"other": [], "this": []}
     worst = 0.0
     try:
         for n in modes:
@@ -338,12 +343,14 @@ def tree_ab(other: str, modes: list, repeats: int) -> None:
                 for name in workers:  # warm-up: imports, first calls
                     ask(name, n, tr)
                 t = {"other": [], "this": []}
+                cpu = {"other": [], "this": []}
                 res = {}
                 for k in range(repeats):
                     order = ("other", "this") if k % 2 == 0 else ("this", "other")
                     for name in order:
                         res[name] = ask(name, n, tr)
                         t[name].append(res[name]["t"])
+                        cpu[name].append(res[name]["cpu"])
                 a, b = res["other"], res["this"]
                 same_shape = len(a["sw"]) == len(b["sw"])
                 dT = abs(a["T"] - b["T"]) / a["T"]
@@ -356,9 +363,12 @@ def tree_ab(other: str, modes: list, repeats: int) -> None:
                 worst = max(worst, dT, dsw)
                 for name in t:
                     pooled[name].extend(t[name])
+                    pooled_cpu[name].extend(cpu[name])
                 mo, mt = 1e3 * np.median(t["other"]), 1e3 * np.median(t["this"])
+                co, ct = 1e3 * np.median(cpu["other"]), 1e3 * np.median(cpu["this"])
                 print(
-                    f"{n:>5} {move_for(beam(n), tr):>8.4g} {mo:>9.2f} {mt:>8.2f} {mo / mt:>6.2f} {dT:>8.1e} "
+                    f"{n:>5} {move_for(beam(n), tr):>8.4g} {mo:>9.2f} {mt:>8.2f} {mo / mt:>6.2f} "
+                    f"{co:>9.2f} {ct:>8.2f} {co / ct:>6.2f} {dT:>8.1e} "
                     f"{dsw:>10.1e} {b['status']:>8} {str(same):>5} {str(b['lean']):>5}",
                     flush=True,
                 )
