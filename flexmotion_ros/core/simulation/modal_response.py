@@ -75,6 +75,7 @@ class ModalResponse:
         self.sig = np.asarray(model.zeta, dtype=float) * self.w  # decay rate zeta*omega (1/s)
         self.wd = model.omega_d
         self.bm = np.asarray(model.b, dtype=float)
+        self._rate = -self.sig + 1j * self.wd  # d/dtau of a mode's complex amplitude
 
     # -------------------------------------------------------------- matrices
     def A(self) -> np.ndarray:
@@ -136,10 +137,15 @@ class ModalResponse:
         """
         tau = np.atleast_1d(np.asarray(tau, dtype=float))
         out = np.empty((tau.size, self.n))
-        ct = self.c * tau
-        if self.include_position:
-            out[:, 0] = self.b0 * tau * tau * phi2(ct)
-        out[:, self.r - 1] = self.b0 * tau * phi1(ct)
+        if self.c == 0.0:  # phi1(0) = 1, phi2(0) = 1/2 exactly: the same numbers without the series
+            if self.include_position:
+                out[:, 0] = self.b0 * tau * tau * 0.5
+            out[:, self.r - 1] = self.b0 * tau
+        else:
+            ct = self.c * tau
+            if self.include_position:
+                out[:, 0] = self.b0 * tau * tau * phi2(ct)
+            out[:, self.r - 1] = self.b0 * tau * phi1(ct)
         if self.w.size:
             E, C, S = self._mode_trig(tau)
             t = tau[:, None]
@@ -225,7 +231,8 @@ class ModalResponse:
 
         ``derivative=True`` returns ``(S, S')``; ``order=k`` returns
         ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one
-        matrix product over the modes for all orders.
+        matrix product over the modes for all orders, the rigid part's
+        orders in one outer product.
         """
         k = 0 if order is None else order
         if derivative and order is None:
@@ -234,6 +241,7 @@ class ModalResponse:
         nu = np.asarray(nu, dtype=float)
         c = self.c
         nv = nu[self.r - 1]
+        out = np.empty((k + 1, tau.size))
         if c != 0.0:
             ect = np.exp(c * tau)
             lin = tau * phi1(c * tau)
@@ -242,31 +250,32 @@ class ModalResponse:
             lin = tau
         if self.include_position:
             np_ = nu[0]
-            S0 = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
+            out[0] = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
             d1c = self.b0 * (np_ + nv * c)
         else:
-            S0 = self.b0 * nv * (ect if ect is not None else 1.0) * np.ones_like(tau)
+            out[0] = self.b0 * nv * (ect if ect is not None else 1.0)
             d1c = self.b0 * c * nv
+        if k:  # rigid part: S^(j) = c^(j-1) S'(0) e^{c tau}
+            if ect is None:
+                out[1] = d1c
+                out[2:] = 0.0
+            else:
+                np.multiply.outer(d1c * c ** np.arange(k, dtype=float), ect, out=out[1:])
         if self.w.size:
-            # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig)
+            # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig), i.e.
+            # a + i b times lambda = -sig + i wd: the orders are one running complex product (the
+            # same multiplications, in the same order, as the real recursion)
             a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
             bb = nu[self.r + 1 :: 2] * self.bm
-            coef = np.empty((2 * self.w.size, k + 1))
-            for j in range(k + 1):
-                coef[: self.w.size, j] = a
-                coef[self.w.size :, j] = bb
-                a, bb = -(a * self.sig + bb * self.wd), a * self.wd - bb * self.sig
-            modal = self._trig_basis(tau) @ coef
-        else:
-            modal = None
-        out = []
-        for j in range(k + 1):
-            if j == 0:
-                col = S0
-            else:  # rigid part: S^(j) = c^(j-1) S'
-                col = d1c * c ** (j - 1) * (ect if ect is not None else 1.0)
-                col = col if isinstance(col, np.ndarray) else np.full(tau.shape, col)
-            out.append(col + modal[:, j] if modal is not None else col)
+            if k:
+                z = np.empty((self.w.size, k + 1), dtype=complex)
+                z[:, 0] = a + 1j * bb
+                z[:, 1:] = self._rate[:, None]
+                z = np.multiply.accumulate(z, axis=1)
+                coef = np.concatenate([z.real, z.imag])
+            else:
+                coef = np.concatenate([a, bb])[:, None]
+            out += (self._trig_basis(tau) @ coef).T
         return out[0] if k == 0 else tuple(out)
 
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
