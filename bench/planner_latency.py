@@ -378,7 +378,11 @@ def tree_ab(other: str, modes: list, repeats: int) -> None:
             w.wait()
     print("-" * len(head))
     mo, mt = 1e3 * np.median(pooled["other"]), 1e3 * np.median(pooled["this"])
-    print(f"# pooled median: other {mo:.2f} ms, this {mt:.2f} ms ({mo / mt:.2f}x); worst |dT|/T or |dsw|/T {worst:.1e}")
+    co, ct = 1e3 * np.median(pooled_cpu["other"]), 1e3 * np.median(pooled_cpu["this"])
+    print(
+        f"# pooled median: other {mo:.2f} ms, this {mt:.2f} ms ({mo / mt:.2f}x); thread CPU time: other {co:.2f} ms, "
+        f"this {ct:.2f} ms ({co / ct:.2f}x); worst |dT|/T or |dsw|/T {worst:.1e}"
+    )
 
 
 def lean_ab_table(rows: list) -> None:

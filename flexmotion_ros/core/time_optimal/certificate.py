@@ -134,15 +134,18 @@ def _certify_with(
     iso = isolate_roots(system, nu, T, grid, magnitude=magnitude)
     unproved = iso.unproved
     tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL, magnitude=magnitude)
-    matched = np.zeros(tau_sw.size, dtype=bool)
+    # each proved zero matched to its nearest switch (the first of equals, as argmin), on Python
+    # floats: a handful of each, where three numpy calls per zero cost more than the comparisons
+    sw, tl = tau_sw.tolist(), tol.tolist()
+    matched = [False] * len(sw)
     extra = 0
-    for z in iso.roots:
-        k = int(np.argmin(np.abs(tau_sw - z))) if tau_sw.size else -1
-        if k >= 0 and not matched[k] and abs(tau_sw[k] - z) <= tol[k]:
+    for z in iso.roots.tolist():
+        k = min(range(len(sw)), key=lambda j: abs(sw[j] - z)) if sw else -1
+        if k >= 0 and not matched[k] and abs(sw[k] - z) <= tl[k]:
             matched[k] = True
         else:
             extra += 1
-    extra += int(np.count_nonzero(~matched))  # a switch where S does not change sign
+    extra += matched.count(False)  # a switch where S does not change sign
 
     # the switching function's size, the unit of the residual test: sampled on
     # every 16th grid point and the ends (a lower bound of its maximum, so the

@@ -251,20 +251,21 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
     signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
     jump = 2.0 * um * signs[:-1]
     sl = um * float(signs[-1])
-    nuh = nuh / np.linalg.norm(nuh)
+    weights = np.append(jump, sl)  # F = e^{AT} x0 + weights . Gamma(tau_1..tau_L, T)
+    inv_s = 1.0 / s
+    nuh = nuh / math.sqrt(float(nuh @ nuh))
     anchor = nuh.copy()
     eps = np.finfo(float).eps
     J = np.zeros((n + L + 1, L + n + 1))
     J[-1, L : L + n] = anchor
+    diag = (np.arange(n, n + L), np.arange(L))  # the switch rows' own time columns
 
     def residual(tau, nuh, T):
         kv = kern.evaluate(np.append(tau, T))
         lm.evaluations += 1
-        G = kv.G
-        F = (kv.eAx + sl * G[L] + jump @ G[:L]) / s
-        g = kv.eB[:L] / s
+        g = kv.eB[:L] * inv_s
         r = np.empty(n + L + 1)
-        r[:n] = F
+        r[:n] = (kv.eAx + weights @ kv.G) * inv_s
         r[n : n + L] = (g @ nuh) * gscale
         r[-1] = anchor @ nuh - 1.0
         return r, g, kv
@@ -273,7 +274,7 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
     tau = roots.copy()
     r, g, kv = residual(tau, nuh, T)
     if L:
-        gscale = 1.0 / max(float(np.max(np.linalg.norm(g, axis=1))), 1e-300)
+        gscale = 1.0 / max(math.sqrt(float(np.max(np.einsum("ij,ij->i", g, g)))), 1e-300)
         r[n : n + L] *= gscale
     rn = float(np.max(np.abs(r)))
     floor = 0.0
@@ -281,9 +282,9 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
         if rn <= 16.0 * eps:
             break
         J[:n, :L] = g.T * jump
-        J[:n, -1] = (kv.AeAx + sl * kv.eB[L]) / s
+        J[:n, -1] = (kv.AeAx + sl * kv.eB[L]) * inv_s
         if L:
-            J[n : n + L, :L] = np.diag((kv.AeB[:L] / s) @ nuh * gscale)
+            J[diag] = (kv.AeB[:L] @ (nuh * inv_s)) * gscale
             J[n : n + L, L : L + n] = g * gscale
         step = _solve(J, -r)
         if step is None:
