@@ -117,31 +117,36 @@ def refine_roots(
     a = a.copy()
     b = b.copy()
     fa = fa.copy()
-    if start is None:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            start = a - fa * (b - a) / (fb - fa)  # regula falsi start
-    t = np.where(np.isfinite(start), np.clip(start, a, b), 0.5 * (a + b))
-    active = np.ones(t.shape, dtype=bool)
     eps = np.finfo(float).eps
-    for _ in range(100):
-        idx = np.flatnonzero(active)
-        ta, aa, ba, faa = t[idx], a[idx], b[idx], fa[idx]
-        v, dv = f(ta)
-        same = np.sign(v) == np.sign(faa)
-        aa = np.where(same, ta, aa)
-        faa = np.where(same, v, faa)
-        ba = np.where(same, ba, ta)
-        with np.errstate(divide="ignore", invalid="ignore"):
+    # every bracket is stepped in place, the converged ones frozen by ``active`` (a handful of
+    # brackets: gathering and scattering the active ones cost more numpy calls than the steps)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if start is None:
+            start = a - fa * (b - a) / (fb - fa)  # regula falsi start
+        t = np.where(np.isfinite(start), np.clip(start, a, b), 0.5 * (a + b))
+        active = np.ones(t.shape, dtype=bool)
+        for _ in range(100):
+            v, dv = f(t)
+            same = np.sign(v) == np.sign(fa)
+            a = np.where(active & same, t, a)
+            fa = np.where(active & same, v, fa)
+            b = np.where(active & ~same, t, b)
             step = v / dv
-        tol = 4.0 * eps * np.maximum(np.abs(ta), 1e-300)
-        done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((ba - aa) <= tol)
-        tn = ta - step
-        bad = ~np.isfinite(tn) | (tn < aa) | (tn > ba)
-        tn = np.where(done, ta - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (aa + ba), tn))
-        a[idx], b[idx], fa[idx], t[idx] = aa, ba, faa, tn
-        active[idx[done]] = False
-        if not active.any():
-            break
+            tol = 4.0 * eps * np.maximum(np.abs(t), 1e-300)
+            done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((b - a) <= tol)
+            tn = t - step
+            bad = ~np.isfinite(tn) | (tn < a) | (tn > b)
+            tn = np.where(done, t - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (a + b), tn))
+            t = np.where(active, tn, t)
+            active &= ~done
+            left = int(np.count_nonzero(active))
+            if left == 0:
+                break
+            if 2 * left < t.size and t.size > 16:  # many brackets, most done: go on with the others alone
+                idx = np.flatnonzero(active)
+                fs = noise / (16.0 * eps)
+                t[idx] = refine_roots(f, a[idx], b[idx], fa[idx], fb[idx], fs, start=t[idx])
+                break
     return t
 
 
