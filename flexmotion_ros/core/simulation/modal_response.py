@@ -291,7 +291,7 @@ class ModalResponse:
             # the position term nu_p (e^{c tau} - 1) / c grows like tau only for c = 0: with
             # friction it stays below nu_p / |c| (a bound T |nu_p| hid every zero-free block of a
             # long move behind a margin a thousand times |S|: 0.4 s of sampling per guess)
-            reach = tau_max * float(phi1(np.array([self.c * tau_max]))[0])
+            reach = tau_max if self.c == 0.0 else tau_max * float(phi1(np.array([self.c * tau_max]))[0])
             m0 = b0 * (abs(nu[0]) * reach + nv)
             m1 = b0 * (abs(nu[0]) + nv * abs(self.c))
         else:

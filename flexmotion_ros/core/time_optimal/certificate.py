@@ -175,14 +175,16 @@ def _certify_with(
     drift = np.einsum("ij,ij->i", lam, states_at_breaks @ A.T)
     push = lam @ B * u_after
     kappa = drift + push
-    scale = -1.0 / float(np.mean(kappa)) if np.mean(kappa) < 0 else np.nan
+    kappa_mean = float(np.mean(kappa))
+    scale = -1.0 / kappa_mean if kappa_mean < 0 else np.nan
+    finite = math.isfinite(scale)
     ham = np.abs(1.0 + scale * kappa)
-    ham_max = float(np.max(ham)) if np.isfinite(scale) else np.inf
+    ham_max = float(np.max(ham)) if finite else np.inf
     # constancy of lambda^T (A x + B u) relative to its terms: rounding-proof
     # even when the scale factor is huge (a switch at the very end, S(0) ~ 0)
     parts = float(np.max(np.abs(drift) + np.abs(push))) or 1.0
-    ham_spread = float(np.max(np.abs(kappa - np.mean(kappa)))) / parts if np.isfinite(scale) else np.inf
-    lam_scaled = lam * (scale if np.isfinite(scale) else 1.0)
+    ham_spread = float(np.max(np.abs(kappa - kappa_mean))) / parts if finite else np.inf
+    lam_scaled = lam * (scale if finite else 1.0)
 
     # --- 5. how much earlier could an exact arrival be, given x(T)'s error ----
     gap_end = end_gap(system, nu, T, u_max, states_at_breaks, iso.roots)
