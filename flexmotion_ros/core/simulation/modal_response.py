@@ -22,6 +22,8 @@ import numpy as np
 from ..model.modal_model import ModalModel
 
 _SERIES_Z = 0.1  # |c tau| below which phi-functions use their Taylor series
+#: Switching-function coefficient sets kept per response (:meth:`ModalResponse._switching_coefficients`).
+COEFFICIENT_MEMO = 8
 
 
 def phi1(z: np.ndarray) -> np.ndarray:
@@ -220,7 +222,10 @@ class ModalResponse:
             if key is tau:
                 return val
         E, C, Sn = self._mode_trig(tau)
-        val = np.concatenate([E * Sn, E * C], axis=1)
+        N = self.w.size
+        val = np.empty((tau.size, 2 * N))
+        np.multiply(E, Sn, out=val[:, :N])
+        np.multiply(E, C, out=val[:, N:])
         if tau.size >= 32 and not tau.flags.writeable:
             cache.insert(0, (tau, val))
             del cache[2:]
@@ -262,21 +267,37 @@ class ModalResponse:
             else:
                 np.multiply.outer(d1c * c ** np.arange(k, dtype=float), ect, out=out[1:])
         if self.w.size:
-            # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig), i.e.
-            # a + i b times lambda = -sig + i wd: the orders are one running complex product (the
-            # same multiplications, in the same order, as the real recursion)
-            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
-            bb = nu[self.r + 1 :: 2] * self.bm
-            if k:
-                z = np.empty((self.w.size, k + 1), dtype=complex)
-                z[:, 0] = a + 1j * bb
-                z[:, 1:] = self._rate[:, None]
-                z = np.multiply.accumulate(z, axis=1)
-                coef = np.concatenate([z.real, z.imag])
-            else:
-                coef = np.concatenate([a, bb])[:, None]
-            out += (self._trig_basis(tau) @ coef).T
+            out += (self._trig_basis(tau) @ self._switching_coefficients(nu, k)).T
         return out[0] if k == 0 else tuple(out)
+
+    def _switching_coefficients(self, nu: np.ndarray, k: int) -> np.ndarray:
+        """The modes' coefficients of ``S, S', ..., S^(k)`` on the basis ``[E sin, E cos]``, shape ``(2N, k + 1)``.
+
+        ``S_i = E (a_i sin + b_i cos)``; ``d/dtau`` maps ``(a, b) -> (-(a sig + b wd), a wd - b sig)``,
+        i.e. ``a + i b`` times ``lambda = -sig + i wd``: the orders are one running complex product
+        (the same multiplications, in the same order, as the real recursion).  The last few are kept
+        by the bytes of ``nu`` (a certificate evaluates one co-state's ``S`` about ten times).
+        """
+        memo = self.__dict__.setdefault("_coef_memo", {})
+        key = (nu.tobytes(), k)
+        coef = memo.get(key)
+        if coef is not None:
+            return coef
+        a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+        bb = nu[self.r + 1 :: 2] * self.bm
+        if k:
+            z = np.empty((self.w.size, k + 1), dtype=complex)
+            z[:, 0] = a + 1j * bb
+            z[:, 1:] = self._rate[:, None]
+            z = np.multiply.accumulate(z, axis=1)
+            coef = np.concatenate([z.real, z.imag])
+        else:
+            coef = np.concatenate([a, bb])[:, None]
+        coef.flags.writeable = False
+        if len(memo) >= COEFFICIENT_MEMO:
+            memo.pop(next(iter(memo)))
+        memo[key] = coef
+        return coef
 
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]``.
