@@ -275,8 +275,9 @@ class ModalResponse:
 
         ``S_i = E (a_i sin + b_i cos)``; ``d/dtau`` maps ``(a, b) -> (-(a sig + b wd), a wd - b sig)``,
         i.e. ``a + i b`` times ``lambda = -sig + i wd``: the orders are one running complex product
-        (the same multiplications, in the same order, as the real recursion).  The last few are kept
-        by the bytes of ``nu`` (a certificate evaluates one co-state's ``S`` about ten times).
+        (the same multiplications, in the same order, as the real recursion).  Up to
+        :data:`COEFFICIENT_MEMO` are kept by the bytes of ``nu`` (a certificate evaluates one
+        co-state's ``S`` about ten times).
         """
         memo = self.__dict__.setdefault("_coef_memo", {})
         key = (nu.tobytes(), k)
@@ -295,7 +296,7 @@ class ModalResponse:
             coef = np.concatenate([a, bb])[:, None]
         coef.flags.writeable = False
         if len(memo) >= COEFFICIENT_MEMO:
-            memo.pop(next(iter(memo)))
+            memo.clear()  # atomic: no iteration over a dict another thread may be filling
         memo[key] = coef
         return coef
 
