@@ -22,6 +22,17 @@ modes) and a fixed set of rest-to-rest moves, prints one table:
   time, its IPOPT solve time (NLP construction excluded) and
   ``T_casadi - T*``.
 
+``--ab-tree PATH`` adds a table of the continuous certified planner of
+another checkout (e.g. ``/work/main``) against this one: two worker
+processes, one importing each tree's package, plan the same moves cold in
+alternating repeats (the same load for both), and the table gives both
+medians (wall and the worker thread's CPU time, the latter less
+sensitive to other processes on the machine), their ratios, and whether the two optima agree (``|dT| / T``, switch
+times ``/ T``, certificate status).  ``--ab-random N`` adds ``N`` seeded
+random 1-3-mode moves (:func:`random_problem`) planned by both workers:
+the same structure, levels and certificate status, the distribution of
+``|dT| / T`` and switch differences, and both CPU medians.
+
 ``--lean-ab`` adds a second table: the continuous and ZOH latencies with the
 time-optimal planner's lean path off (``time_optimal.LEAN_PATH = False``: the
 planner before it) and on, repeats alternating between the two so that both
@@ -30,6 +41,7 @@ see the same load, and whether both gave the same certified optimum.
 Usage::
 
     OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100] [--lean-ab]
+        [--ab-tree /work/main [--ab-only] [--ab-random 300 --seed 1]]
 """
 
 from __future__ import annotations
@@ -41,16 +53,21 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
 import itertools
+import json
 import math
 import platform
+import subprocess
+import sys
 import time
 
 import numpy as np
 from scipy.linalg import expm
 
 from flexmotion_ros.core import (
+    ModalModel,
     chain,
     final_state,
+    motion_to_rest,
     plan_time_optimal,
     plan_time_optimal_zoh,
     rest_to_rest,
@@ -269,6 +286,200 @@ def timed_ab(fn, repeats: int):
     return {k: np.array(v) for k, v in out.items()}, result
 
 
+def random_problem(seed: int, index: int):
+    """Random 1-3-mode move number ``index`` of ``seed`` (as the lean path's property tests draw them).
+
+    omega 0.3..30 rad/s (each mode 1.05..4x the previous), undamped or zeta
+    0..0.3, ``|b|``, ``|b0|`` 0.1..10, friction ``c`` for a quarter, ``u_max``
+    0.1..10, moves 1e-3..1e2 of the natural distance, a fifth from moving to rest.
+    """
+    rng = np.random.default_rng([seed, index])
+
+    def log_uniform(a: float, b: float) -> float:
+        return math.exp(rng.uniform(math.log(a), math.log(b)))
+
+    def sign() -> float:
+        return 1.0 if rng.random() < 0.5 else -1.0
+
+    w = [log_uniform(0.3, 30.0)]
+    for _ in range(int(rng.integers(1, 4)) - 1):
+        w.append(w[-1] * rng.uniform(1.05, 4.0))
+    undamped = rng.random() < 0.5
+    zeta = [0.0 if undamped else rng.uniform(0.0, 0.3) for _ in w]
+    b = [sign() * log_uniform(0.1, 10.0) for _ in w]
+    b0 = sign() * log_uniform(0.1, 10.0)
+    c = -w[0] * log_uniform(1e-2, 3.0) if rng.random() < 0.25 else 0.0
+    model = ModalModel(b0=b0, c=c, omega=tuple(w), zeta=tuple(zeta), b=tuple(b))
+    u_max, size = log_uniform(0.1, 10.0), log_uniform(1e-3, 1e2)
+    if rng.random() < 0.8:
+        return rest_to_rest(model, u_max, sign() * model.natural_distance(u_max) * size)
+    return motion_to_rest(model, u_max, sign() * abs(b0) * u_max / min(w) * size)
+
+
+def worker() -> None:
+    """``--worker``: plan the moves read from stdin, one JSON line of latency and result each.
+
+    A line is ``bench n rigid_time`` (a bench move) or ``random seed index`` (:func:`random_problem`).
+    """
+    for line in sys.stdin:
+        kind, x, y = line.split()
+        if kind == "bench":
+            model = beam(int(x))
+            problem = rest_to_rest(model, U_MAX, move_for(model, float(y)))
+        else:
+            problem = random_problem(int(x), int(y))
+        _simulation._step_cached.cache_clear()
+        c0 = time.thread_time()
+        t0 = time.perf_counter()
+        try:
+            prof = plan_time_optimal(problem)
+        except Exception as exc:  # noqa: BLE001 - a refusal is a result to compare too
+            print(json.dumps({"t": time.perf_counter() - t0, "cpu": time.thread_time() - c0, "error": repr(exc)}))
+            sys.stdout.flush()
+            continue
+        dt = time.perf_counter() - t0
+        reply = {
+            "t": dt,
+            "cpu": time.thread_time() - c0,
+            "T": prof.duration,
+            "sw": [float(x) for x in prof.switch_times],
+            "levels": [float(x) for x in prof.levels],
+            "status": str(prof.certificate.status),
+            "lean": prof.extra.get("fast_path_stage") == "lean",
+        }
+        print(json.dumps(reply), flush=True)
+
+
+def _start_worker(tree: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    return subprocess.Popen(
+        [sys.executable, os.path.abspath(__file__), "--worker"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def _ask(worker_process: subprocess.Popen, line: str) -> dict:
+    worker_process.stdin.write(line + "\n")
+    worker_process.stdin.flush()
+    return json.loads(worker_process.stdout.readline())
+
+
+def _compare(a: dict, b: dict) -> tuple[float, float, bool]:
+    """``(|dT| / T, max |d switch| / T, same)`` of two worker replies (same: structure, levels, status, <= 1e-12)."""
+    if "error" in a or "error" in b:
+        return math.nan, math.nan, a.get("error") == b.get("error")
+    shape = len(a["sw"]) == len(b["sw"]) and a["levels"] == b["levels"]
+    dT = abs(a["T"] - b["T"]) / a["T"]
+    dsw = float(np.max(np.abs(np.subtract(a["sw"], b["sw"])), initial=0.0)) / a["T"] if shape else math.inf
+    return dT, dsw, shape and a["status"] == b["status"] and dT <= 1e-12 and dsw <= 1e-12
+
+
+def random_ab(other: str, count: int, seed: int) -> None:
+    """``--ab-random``: the same optimum as ``other``'s planner on ``count`` random 1-3-mode moves, and the latency."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    workers = {"other": _start_worker(other), "this": _start_worker(here)}
+    d, cpu, status_same, lean, errors = [], {"other": [], "this": []}, 0, 0, []
+    try:
+        for name in workers:
+            _ask(workers[name], f"random {seed} 0")  # warm-up
+        for i in range(count):
+            res = {}
+            for name in ("other", "this") if i % 2 == 0 else ("this", "other"):
+                res[name] = _ask(workers[name], f"random {seed} {i}")
+                cpu[name].append(res[name]["cpu"])
+            a, b = res["other"], res["this"]
+            dT, dsw, _ = _compare(a, b)
+            if "error" in a or "error" in b:
+                errors.append((i, a.get("error"), b.get("error")))
+                continue
+            status_same += a["status"] == b["status"] and len(a["sw"]) == len(b["sw"]) and a["levels"] == b["levels"]
+            lean += b["lean"]
+            d.append(max(dT, dsw))
+    finally:
+        for w in workers.values():
+            w.stdin.close()
+            w.wait()
+    d = np.array(d)
+    co, ct = 1e3 * np.median(cpu["other"]), 1e3 * np.median(cpu["this"])
+    print()
+    print(f"# {count} random 1-3-mode moves (seed {seed}): {other} (other) vs this checkout, alternating")
+    print(
+        f"# same structure, levels and certificate status: {status_same} of {d.size} planned by both; "
+        f"refusals/errors differing or not: {errors or 'none'}"
+    )
+    print(
+        f"# max(|dT|, max |d switch|) / T: median {np.median(d):.1e}, p99 {np.percentile(d, 99):.1e}, "
+        f"max {d.max():.1e}; over 1e-13: {int(np.sum(d > 1e-13))}, over 1e-12: {int(np.sum(d > 1e-12))}"
+    )
+    print(
+        f"# lean path answered {lean} of {d.size}; thread CPU median: other {co:.2f} ms, this {ct:.2f} ms ({co / ct:.2f}x)"
+    )
+
+
+def tree_ab(other: str, modes: list, repeats: int) -> None:
+    """``--ab-tree``: this checkout's continuous planner against ``other``'s, alternating repeats."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    workers = {"other": _start_worker(other), "this": _start_worker(here)}
+
+    def ask(name: str, n: int, tr: float) -> dict:
+        return _ask(workers[name], f"bench {n} {tr}")
+
+    head = (
+        f"{'modes':>5} {'move m':>8} {'other ms':>9} {'this ms':>8} {'ratio':>6} "
+        f"{'other cpu':>9} {'this cpu':>8} {'ratio':>6} {'|dT|/T':>8} "
+        f"{'max|dsw|/T':>10} {'status':>8} {'same':>5} {'lean':>5}"
+    )
+    print()
+    print(f"# continuous certified planner: {other} (other) vs {here} (this), worker processes, alternating repeats")
+    print(head)
+    print("-" * len(head))
+    pooled = {"other": [], "this": []}
+    pooled_cpu = {"other": [], "this": []}
+    worst = 0.0
+    try:
+        for n in modes:
+            for tr in RIGID_TIMES:
+                for name in workers:  # warm-up: imports, first calls
+                    ask(name, n, tr)
+                t = {"other": [], "this": []}
+                cpu = {"other": [], "this": []}
+                res = {}
+                for k in range(repeats):
+                    order = ("other", "this") if k % 2 == 0 else ("this", "other")
+                    for name in order:
+                        res[name] = ask(name, n, tr)
+                        t[name].append(res[name]["t"])
+                        cpu[name].append(res[name]["cpu"])
+                a, b = res["other"], res["this"]
+                dT, dsw, same = _compare(a, b)
+                worst = max(worst, dT, dsw)
+                for name in t:
+                    pooled[name].extend(t[name])
+                    pooled_cpu[name].extend(cpu[name])
+                mo, mt = 1e3 * np.median(t["other"]), 1e3 * np.median(t["this"])
+                co, ct = 1e3 * np.median(cpu["other"]), 1e3 * np.median(cpu["this"])
+                print(
+                    f"{n:>5} {move_for(beam(n), tr):>8.4g} {mo:>9.2f} {mt:>8.2f} {mo / mt:>6.2f} "
+                    f"{co:>9.2f} {ct:>8.2f} {co / ct:>6.2f} {dT:>8.1e} "
+                    f"{dsw:>10.1e} {b['status']:>8} {str(same):>5} {str(b['lean']):>5}",
+                    flush=True,
+                )
+    finally:
+        for w in workers.values():
+            w.stdin.close()
+            w.wait()
+    print("-" * len(head))
+    mo, mt = 1e3 * np.median(pooled["other"]), 1e3 * np.median(pooled["this"])
+    co, ct = 1e3 * np.median(pooled_cpu["other"]), 1e3 * np.median(pooled_cpu["this"])
+    print(
+        f"# pooled median: other {mo:.2f} ms, this {mt:.2f} ms ({mo / mt:.2f}x); thread CPU time: other {co:.2f} ms, "
+        f"this {ct:.2f} ms ({co / ct:.2f}x); worst |dT|/T or |dsw|/T {worst:.1e}"
+    )
+
+
 def lean_ab_table(rows: list) -> None:
     """The A/B table of ``--lean-ab`` (see the module docstring)."""
     head = (
@@ -315,7 +526,20 @@ def main() -> None:
     ap.add_argument("--modes", type=int, nargs="*", default=list(MODES))
     ap.add_argument("--no-casadi", action="store_true")
     ap.add_argument("--lean-ab", action="store_true", help="also time the planner with its lean path off and on")
+    ap.add_argument("--ab-tree", help="also time the continuous planner of another checkout against this one")
+    ap.add_argument("--ab-only", action="store_true", help="with --ab-tree: only that table")
+    ap.add_argument("--ab-random", type=int, default=0, help="with --ab-tree: also this many random 1-3-mode moves")
+    ap.add_argument("--seed", type=int, default=1, help="seed of --ab-random")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.worker:
+        worker()
+        return
+    if args.ab_tree and args.ab_only:
+        tree_ab(args.ab_tree, [n for n in args.modes if n <= 3], args.repeats)
+        if args.ab_random:
+            random_ab(args.ab_tree, args.ab_random, args.seed)
+        return
     ab_rows = []
 
     print(
@@ -420,6 +644,10 @@ def main() -> None:
             f"in this run: {med * 1e3:.2f} ms vs IPOPT median {ipopt * 1e3:.0f} ms, {ipopt / med:.0f}x -> "
             f"{'MET' if med < 1e-3 and ipopt / med >= 100.0 else 'NOT MET'}"
         )
+    if args.ab_tree:
+        tree_ab(args.ab_tree, [n for n in args.modes if n <= 3], args.repeats)
+        if args.ab_random:
+            random_ab(args.ab_tree, args.ab_random, args.seed)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
+#: The sample points of :func:`state_scale` on ``[0, 1]`` (times ``T``), built once.
+_UNIT_GRID = np.concatenate([np.linspace(0.0, 1.0, 65), np.geomspace(1e-6, 1.0, 61)])
+
 
 def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     """How large each state can get in a move of length ``T`` (state units).
@@ -47,8 +50,7 @@ def state_scale(system, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     """
     # uniform points plus geometric ones near 0: a fast, damped mode peaks
     # (and decays) long before T on a long move
-    grid = np.concatenate([np.linspace(0.0, T, 65), np.geomspace(T * 1e-6, T, 61)])
-    G = system.input_integral(grid)
+    G = system.input_integral(T * _UNIT_GRID)
     s = _free_motion_scale(system, np.asarray(x0, dtype=float), T) + u_max * np.max(np.abs(G), axis=0)
     return np.where(s > 0.0, s, 1.0)
 

@@ -22,6 +22,8 @@ import numpy as np
 from ..model.modal_model import ModalModel
 
 _SERIES_Z = 0.1  # |c tau| below which phi-functions use their Taylor series
+#: Switching-function coefficient sets kept per response (:meth:`ModalResponse._switching_coefficients`).
+COEFFICIENT_MEMO = 8
 
 
 def phi1(z: np.ndarray) -> np.ndarray:
@@ -78,6 +80,7 @@ class ModalResponse:
         self.sig = np.asarray(model.zeta, dtype=float) * self.w  # decay rate zeta*omega (1/s)
         self.wd = model.omega_d
         self.bm = np.asarray(model.b, dtype=float)
+        self._rate = -self.sig + 1j * self.wd  # d/dtau of a mode's complex amplitude
 
     # -------------------------------------------------------------- matrices
     def A(self) -> np.ndarray:
@@ -139,10 +142,15 @@ class ModalResponse:
         """
         tau = np.atleast_1d(np.asarray(tau, dtype=float))
         out = np.empty((tau.size, self.n))
-        ct = self.c * tau
-        if self.include_position:
-            out[:, 0] = self.b0 * tau * tau * phi2(ct)
-        out[:, self.r - 1] = self.b0 * tau * phi1(ct)
+        if self.c == 0.0:  # phi1(0) = 1, phi2(0) = 1/2 exactly: the same numbers without the series
+            if self.include_position:
+                out[:, 0] = self.b0 * tau * tau * 0.5
+            out[:, self.r - 1] = self.b0 * tau
+        else:
+            ct = self.c * tau
+            if self.include_position:
+                out[:, 0] = self.b0 * tau * tau * phi2(ct)
+            out[:, self.r - 1] = self.b0 * tau * phi1(ct)
         if self.w.size:
             E, C, S = self._mode_trig(tau)
             t = tau[:, None]
@@ -217,7 +225,10 @@ class ModalResponse:
             if key is tau:
                 return val
         E, C, Sn = self._mode_trig(tau)
-        val = np.concatenate([E * Sn, E * C], axis=1)
+        N = self.w.size
+        val = np.empty((tau.size, 2 * N))
+        np.multiply(E, Sn, out=val[:, :N])
+        np.multiply(E, C, out=val[:, N:])
         if tau.size >= 32 and not tau.flags.writeable:
             cache.insert(0, (tau, val))
             del cache[2:]
@@ -235,10 +246,11 @@ class ModalResponse:
 
         ``derivative=True`` returns ``(S, S')``; ``order=k`` returns
         ``(S, S', ..., S^(k))``.  Cheaper than ``expm_B(tau) @ nu``: one
-        matrix product over the modes for all orders.  ``rows``: evaluate at
-        ``tau[rows]`` only, from the basis of the whole of ``tau`` (cached
-        for a planner's grid: many subsets of one grid share one ``exp``,
-        ``sin``, ``cos`` evaluation).
+        matrix product over the modes for all orders, the rigid part's
+        orders in one outer product.  ``rows``: evaluate at ``tau[rows]``
+        only, from the basis of the whole of ``tau`` (cached for a planner's
+        grid: many subsets of one grid share one ``exp``, ``sin``, ``cos``
+        evaluation).
         """
         k = 0 if order is None else order
         if derivative and order is None:
@@ -251,6 +263,7 @@ class ModalResponse:
         nu = np.asarray(nu, dtype=float)
         c = self.c
         nv = nu[self.r - 1]
+        out = np.empty((k + 1, tau.size))
         if c != 0.0:
             ect = np.exp(c * tau)
             lin = tau * phi1(c * tau)
@@ -259,32 +272,51 @@ class ModalResponse:
             lin = tau
         if self.include_position:
             np_ = nu[0]
-            S0 = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
+            out[0] = self.b0 * (np_ * lin + (nv * ect if ect is not None else nv))
             d1c = self.b0 * (np_ + nv * c)
         else:
-            S0 = self.b0 * nv * (ect if ect is not None else 1.0) * np.ones_like(tau)
+            out[0] = self.b0 * nv * (ect if ect is not None else 1.0)
             d1c = self.b0 * c * nv
+        if k:  # rigid part: S^(j) = c^(j-1) S'(0) e^{c tau}
+            if ect is None:
+                out[1] = d1c
+                out[2:] = 0.0
+            else:
+                np.multiply.outer(d1c * c ** np.arange(k, dtype=float), ect, out=out[1:])
         if self.w.size:
-            # S_i = E (a_i sin + b_i cos); d/dtau maps (a, b) -> (-(a sig + b wd), a wd - b sig)
-            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
-            bb = nu[self.r + 1 :: 2] * self.bm
-            coef = np.empty((2 * self.w.size, k + 1))
-            for j in range(k + 1):
-                coef[: self.w.size, j] = a
-                coef[self.w.size :, j] = bb
-                a, bb = -(a * self.sig + bb * self.wd), a * self.wd - bb * self.sig
-            modal = (basis if basis is not None else self._trig_basis(tau)) @ coef
-        else:
-            modal = None
-        out = []
-        for j in range(k + 1):
-            if j == 0:
-                col = S0
-            else:  # rigid part: S^(j) = c^(j-1) S'
-                col = d1c * c ** (j - 1) * (ect if ect is not None else 1.0)
-                col = col if isinstance(col, np.ndarray) else np.full(tau.shape, col)
-            out.append(col + modal[:, j] if modal is not None else col)
+            trig = basis if basis is not None else self._trig_basis(tau)
+            out += (trig @ self._switching_coefficients(nu, k)).T
         return out[0] if k == 0 else tuple(out)
+
+    def _switching_coefficients(self, nu: np.ndarray, k: int) -> np.ndarray:
+        """The modes' coefficients of ``S, S', ..., S^(k)`` on the basis ``[E sin, E cos]``, shape ``(2N, k + 1)``.
+
+        ``S_i = E (a_i sin + b_i cos)``; ``d/dtau`` maps ``(a, b) -> (-(a sig + b wd), a wd - b sig)``,
+        i.e. ``a + i b`` times ``lambda = -sig + i wd``: the orders are one running complex product
+        (the same multiplications, in the same order, as the real recursion).  Up to
+        :data:`COEFFICIENT_MEMO` are kept by the bytes of ``nu`` (a certificate evaluates one
+        co-state's ``S`` about ten times).
+        """
+        memo = self.__dict__.setdefault("_coef_memo", {})
+        key = (nu.tobytes(), k)
+        coef = memo.get(key)
+        if coef is not None:
+            return coef
+        a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
+        bb = nu[self.r + 1 :: 2] * self.bm
+        if k:
+            z = np.empty((self.w.size, k + 1), dtype=complex)
+            z[:, 0] = a + 1j * bb
+            z[:, 1:] = self._rate[:, None]
+            z = np.multiply.accumulate(z, axis=1)
+            coef = np.concatenate([z.real, z.imag])
+        else:
+            coef = np.concatenate([a, bb])[:, None]
+        coef.flags.writeable = False
+        if len(memo) >= COEFFICIENT_MEMO:
+            memo.clear()  # atomic: no iteration over a dict another thread may be filling
+        memo[key] = coef
+        return coef
 
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]``.
@@ -299,7 +331,7 @@ class ModalResponse:
             # the position term nu_p (e^{c tau} - 1) / c grows like tau only for c = 0: with
             # friction it stays below nu_p / |c| (a bound T |nu_p| hid every zero-free block of a
             # long move behind a margin a thousand times |S|: 0.4 s of sampling per guess)
-            reach = tau_max * float(phi1(np.array([self.c * tau_max]))[0])
+            reach = tau_max if self.c == 0.0 else tau_max * float(phi1(np.array([self.c * tau_max]))[0])
             m0 = b0 * (abs(nu[0]) * reach + nv)
             m1 = b0 * (abs(nu[0]) + nv * abs(self.c))
         else:

@@ -49,6 +49,8 @@ from .switching import isolate_roots, root_tolerance, sample_grid
 #: Rounding of ``S`` in units of ``eps`` times the sum of its terms' magnitudes
 #: (:meth:`switching_magnitude`): a sign margin at or below it is not a proof.
 SIGN_ROUNDING = 16.0
+#: The geometric grid of :func:`end_gap` on ``[1e-16, 1]`` (times ``T``), built once.
+_END_GRID = np.geomspace(1e-16, 1.0, 257)
 
 
 def certify(
@@ -128,18 +130,22 @@ def _certify_with(
         near = dist < 0.25 * h
         near[[0, -1]] = False
         grid = grid[~near]
-    iso = isolate_roots(system, nu, T, grid)
+    magnitude = system.switching_magnitude(nu, T)[0]  # the rounding unit of S, asked for three times
+    iso = isolate_roots(system, nu, T, grid, magnitude=magnitude)
     unproved = iso.unproved
-    tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL)
-    matched = np.zeros(tau_sw.size, dtype=bool)
+    tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL, magnitude=magnitude)
+    # each proved zero matched to its nearest switch (the first of equals, as argmin), on Python
+    # floats: a handful of each, where three numpy calls per zero cost more than the comparisons
+    sw, tl = tau_sw.tolist(), tol.tolist()
+    matched = [False] * len(sw)
     extra = 0
-    for z in iso.roots:
-        k = int(np.argmin(np.abs(tau_sw - z))) if tau_sw.size else -1
-        if k >= 0 and not matched[k] and abs(tau_sw[k] - z) <= tol[k]:
+    for z in iso.roots.tolist():
+        k = min(range(len(sw)), key=lambda j: abs(sw[j] - z)) if sw else -1
+        if k >= 0 and not matched[k] and abs(sw[k] - z) <= tl[k]:
             matched[k] = True
         else:
             extra += 1
-    extra += int(np.count_nonzero(~matched))  # a switch where S does not change sign
+    extra += matched.count(False)  # a switch where S does not change sign
 
     # the switching function's size, the unit of the residual test: sampled on
     # every 16th grid point and the ends (a lower bound of its maximum, so the
@@ -169,14 +175,16 @@ def _certify_with(
     drift = np.einsum("ij,ij->i", lam, states_at_breaks @ A.T)
     push = lam @ B * u_after
     kappa = drift + push
-    scale = -1.0 / float(np.mean(kappa)) if np.mean(kappa) < 0 else np.nan
+    kappa_mean = float(np.mean(kappa))
+    scale = -1.0 / kappa_mean if kappa_mean < 0 else np.nan
+    finite = math.isfinite(scale)
     ham = np.abs(1.0 + scale * kappa)
-    ham_max = float(np.max(ham)) if np.isfinite(scale) else np.inf
+    ham_max = float(np.max(ham)) if finite else np.inf
     # constancy of lambda^T (A x + B u) relative to its terms: rounding-proof
     # even when the scale factor is huge (a switch at the very end, S(0) ~ 0)
     parts = float(np.max(np.abs(drift) + np.abs(push))) or 1.0
-    ham_spread = float(np.max(np.abs(kappa - np.mean(kappa)))) / parts if np.isfinite(scale) else np.inf
-    lam_scaled = lam * (scale if np.isfinite(scale) else 1.0)
+    ham_spread = float(np.max(np.abs(kappa - kappa_mean))) / parts if finite else np.inf
+    lam_scaled = lam * (scale if finite else 1.0)
 
     # --- 5. how much earlier could an exact arrival be, given x(T)'s error ----
     gap_end = end_gap(system, nu, T, u_max, states_at_breaks, iso.roots)
@@ -221,7 +229,7 @@ def _certify_with(
     if not sign_ok:
         reasons.append("levels do not follow u = -u_max sgn(B^T lambda)")
     # a sign test below what S can be evaluated to (rounding of its terms) proves nothing
-    resolution = SIGN_ROUNDING * np.finfo(float).eps * system.switching_magnitude(nu, T)[0] / s_max
+    resolution = SIGN_ROUNDING * np.finfo(float).eps * magnitude / s_max
     below_rounding = sign_ok and min_margin <= resolution
     if below_rounding:
         reasons.append(f"sign margin {min_margin:.1e} below the switching function's rounding {resolution:.1e}")
@@ -310,7 +318,7 @@ def end_gap(
         hit = int(np.searchsorted(area, budget, side="left"))
         return float(tau[hit + 1]) if hit < area.size else float(T)
 
-    tau = np.concatenate([[0.0], T * np.geomspace(1e-16, 1.0, 257)])
+    tau = np.concatenate([[0.0], T * _END_GRID])
     first = reach(tau)
     grid = sample_grid(system, T, density=2.0)
     fine = np.unique(np.concatenate([tau[tau <= 2.0 * first], grid[grid <= 2.0 * first], [min(2.0 * first, T)]]))

@@ -117,35 +117,42 @@ def refine_roots(
     a = a.copy()
     b = b.copy()
     fa = fa.copy()
-    if start is None:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            start = a - fa * (b - a) / (fb - fa)  # regula falsi start
-    t = np.where(np.isfinite(start), np.clip(start, a, b), 0.5 * (a + b))
-    active = np.ones(t.shape, dtype=bool)
     eps = np.finfo(float).eps
-    for _ in range(100):
-        idx = np.flatnonzero(active)
-        ta, aa, ba, faa = t[idx], a[idx], b[idx], fa[idx]
-        v, dv = f(ta)
-        same = np.sign(v) == np.sign(faa)
-        aa = np.where(same, ta, aa)
-        faa = np.where(same, v, faa)
-        ba = np.where(same, ba, ta)
-        with np.errstate(divide="ignore", invalid="ignore"):
+    # every bracket is stepped in place, the converged ones frozen by ``active`` (a handful of
+    # brackets: gathering and scattering the active ones cost more numpy calls than the steps)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if start is None:
+            start = a - fa * (b - a) / (fb - fa)  # regula falsi start
+        t = np.where(np.isfinite(start), np.clip(start, a, b), 0.5 * (a + b))
+        active = np.ones(t.shape, dtype=bool)
+        for _ in range(100):
+            v, dv = f(t)
+            same = np.sign(v) == np.sign(fa)
+            a = np.where(active & same, t, a)
+            fa = np.where(active & same, v, fa)
+            b = np.where(active & ~same, t, b)
             step = v / dv
-        tol = 4.0 * eps * np.maximum(np.abs(ta), 1e-300)
-        done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((ba - aa) <= tol)
-        tn = ta - step
-        bad = ~np.isfinite(tn) | (tn < aa) | (tn > ba)
-        tn = np.where(done, ta - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (aa + ba), tn))
-        a[idx], b[idx], fa[idx], t[idx] = aa, ba, faa, tn
-        active[idx[done]] = False
-        if not active.any():
-            break
+            tol = 4.0 * eps * np.maximum(np.abs(t), 1e-300)
+            done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((b - a) <= tol)
+            tn = t - step
+            bad = ~np.isfinite(tn) | (tn < a) | (tn > b)
+            tn = np.where(done, t - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (a + b), tn))
+            t = np.where(active, tn, t)
+            active &= ~done
+            left = int(np.count_nonzero(active))
+            if left == 0:
+                break
+            if 2 * left < t.size and t.size > 16:  # many brackets, most done: go on with the others alone
+                idx = np.flatnonzero(active)
+                fs = noise / (16.0 * eps)
+                t[idx] = refine_roots(f, a[idx], b[idx], fa[idx], fb[idx], fs, start=t[idx])
+                break
     return t
 
 
 MAX_DEPTH = 40
+#: ``1 / j!`` for the Taylor bounds of :func:`isolate_roots` (orders up to 20).
+_INV_FACTORIAL = 1.0 / np.array([math.factorial(j) for j in range(21)], dtype=float)
 
 
 @dataclass
@@ -175,7 +182,12 @@ TAYLOR_ORDER = 8
 
 
 def isolate_roots(
-    system, nu: np.ndarray, T: float, grid: np.ndarray | None = None, order: int = TAYLOR_ORDER
+    system,
+    nu: np.ndarray,
+    T: float,
+    grid: np.ndarray | None = None,
+    order: int = TAYLOR_ORDER,
+    magnitude: float | None = None,
 ) -> RootIsolation:
     """All sign changes of ``S`` on ``[0, T]``, isolated with proof.
 
@@ -197,7 +209,8 @@ def isolate_roots(
     zero sign at a cell end would hide a sign change from both neighbouring
     cells.  ``order``
     is ``K``: higher proves more cells without bisection, lower is cheaper
-    per cell.
+    per cell.  ``magnitude``: ``system.switching_magnitude(nu, T)[0]`` when
+    the caller has it (the certificate needs it three times).
     """
     if grid is None:
         grid = sample_grid(system, T)
@@ -208,8 +221,10 @@ def isolate_roots(
         """Bound on ``|S^(K+1)|`` over cells starting at ``a``."""
         return local(nu, K + 1, a) if local is not None else system.switching_derivative_bound(nu, K + 1)
 
-    fact = np.array([math.factorial(j) for j in range(K + 1)], dtype=float)
-    mag0, _ = system.switching_magnitude(nu, T)
+    # 1 / (j-1)! for j = 2..K (the Taylor terms of S'), and 1 / K!
+    inv_fact = _INV_FACTORIAL[1:K, None]
+    inv_fact_K = float(_INV_FACTORIAL[K])
+    mag0 = system.switching_magnitude(nu, T)[0] if magnitude is None else magnitude
     grid = np.asarray(grid, dtype=float)
     noise = 1e3 * np.finfo(float).eps * mag0
     budget = 4 * grid.size + 1000  # cells in work at once; beyond it, stop proving
@@ -252,8 +267,8 @@ def isolate_roots(
     for depth in range(MAX_DEPTH + 1):
         h = b - a
         Sa, dSa = Da[0], Da[1]
-        hp = h[None, :] ** np.arange(1, K)[:, None]  # h^(j-1) for j = 2..K
-        R = np.sum(np.abs(Da[2:]) * hp / fact[1:K, None], axis=0) + bound(a) * h**K / fact[K]
+        hp = np.cumprod(np.broadcast_to(h, (K, h.size)), axis=0)  # h^j for j = 1..K
+        R = np.sum(np.abs(Da[2:]) * hp[: K - 1] * inv_fact, axis=0) + bound(a) * hp[K - 1] * inv_fact_K
         change = np.sign(Sa) * np.sign(Sb) < 0
         free = ~change & (np.abs(Sa) + np.abs(Sb) > (np.abs(dSa) + R) * h)
         mono = np.abs(dSa) > R
@@ -426,19 +441,23 @@ def examined_points(system, nu: np.ndarray, grid: np.ndarray, margin: float) -> 
 
 
 def _hermite_root(a, b, fa, fb, da, db) -> np.ndarray:
-    """Zero of the cubic Hermite interpolant on each bracket: a close start for Newton."""
+    """Zero of the cubic Hermite interpolant on each bracket: a close start for Newton.
+
+    The interpolant on ``x = (t - a) / h`` in monomial form ``c0 + c1 x + c2
+    x^2 + c3 x^3`` (Horner: a third of the numpy calls of the Hermite basis),
+    four Newton steps from the secant's zero, clipped to the bracket.
+    """
     h = b - a
+    hda, hdb = h * da, h * db
+    c1 = hda
+    c2 = 3.0 * (fb - fa) - 2.0 * hda - hdb
+    c3 = 2.0 * (fa - fb) + hda + hdb
+    d2, d3 = 2.0 * c2, 3.0 * c3
     with np.errstate(divide="ignore", invalid="ignore"):
         x = np.clip(fa / (fa - fb), 0.0, 1.0)
         for _ in range(4):
-            x2, x3 = x * x, x * x * x
-            p = (2 * x3 - 3 * x2 + 1) * fa + (x3 - 2 * x2 + x) * h * da + (-2 * x3 + 3 * x2) * fb + (x3 - x2) * h * db
-            dp = (
-                (6 * x2 - 6 * x) * fa
-                + (3 * x2 - 4 * x + 1) * h * da
-                + (-6 * x2 + 6 * x) * fb
-                + (3 * x2 - 2 * x) * h * db
-            )
+            p = ((c3 * x + c2) * x + c1) * x + fa
+            dp = (d3 * x + d2) * x + c1
             x = np.clip(x - p / dp, 0.0, 1.0)
     x = np.where(np.isfinite(x), x, 0.5)
     return a + x * h
@@ -454,16 +473,19 @@ def find_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None)
     return iso.roots, iso.sign0
 
 
-def root_tolerance(system, nu: np.ndarray, T: float, roots: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
+def root_tolerance(
+    system, nu: np.ndarray, T: float, roots: np.ndarray, rtol: float = 1e-9, magnitude: float | None = None
+) -> np.ndarray:
     """How precisely each zero of ``S`` is determined (s).
 
     ``max(rtol T, noise / |S'(root)|)`` with ``noise`` a generous bound on the
     rounding error of ``S`` (terms that cancel); in a tight cluster of zeros
     ``|S'|`` is small and a zero's position is only known to that precision.
+    ``magnitude``: ``system.switching_magnitude(nu, T)[0]`` if the caller has it.
     """
     if roots.size == 0:
         return np.empty(0)
-    mag0, _ = system.switching_magnitude(nu, T)
+    mag0 = system.switching_magnitude(nu, T)[0] if magnitude is None else magnitude
     _, dS = system.switching(nu, roots, derivative=True)
     noise = 1e3 * np.finfo(float).eps * mag0
     with np.errstate(divide="ignore"):
