@@ -10,7 +10,7 @@ proof (:func:`~.certificate.end_gap`).  Another member of the subspace may
 certify the same profile with a clear margin.  This module finds the member
 that maximizes the smallest signed value ``sign_k S(tau) / w(tau)`` over
 samples of every interval (``w``: how much ``S`` can be expected there, zero
-at a switch), by :func:`scipy.optimize.linprog`.  Whatever it returns is
+at a switch), by :func:`~flexmotion_ros.core.linear_program.solve_lp`.  Whatever it returns is
 only a candidate: the certificate checks it like any other.
 """
 
@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import null_space
-from scipy.optimize import linprog
+
+from ..linear_program import LpStatus, solve_lp
 
 #: Samples per interval of the profile (and on a geometric scale in the last one).
 SAMPLES = 24
@@ -78,11 +79,11 @@ def widest_costate(system, T: float, switch_times: np.ndarray, levels: np.ndarra
     c_obj = np.zeros(m + 1)
     c_obj[-1] = -1.0
     A_ub = np.hstack([-G, np.ones((G.shape[0], 1))])
-    bounds = [(-1.0, 1.0)] * m + [(None, 1.0)]
-    try:
-        res = linprog(c_obj, A_ub=A_ub, b_ub=np.zeros(G.shape[0]), bounds=bounds, method="highs")
-    except ValueError:
+    lower = np.full(m + 1, -1.0)
+    lower[-1] = -np.inf
+    if not np.isfinite(A_ub).all():
         return None
-    if res.status != 0 or not res.x[-1] > 0.0:
+    res = solve_lp(cost=c_obj, A_ub=A_ub, b_ub=np.zeros(G.shape[0]), lower=lower, upper=1.0)
+    if res.status is not LpStatus.OPTIMAL or not res.x[-1] > 0.0:
         return None
     return (N @ res.x[:m]) / col
