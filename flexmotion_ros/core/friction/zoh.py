@@ -26,12 +26,9 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL
 from .certificate import FrictionStatus
 from .contact import FrictionSystem, simulate_coulomb
+from .profile import FrictionProfile
 from .sampled_lp import FrictionLP
-from .time_optimal import (
-    FrictionProfile,
-    check_coulomb_force,
-    plan_time_optimal_friction,
-)
+from .time_optimal import check_coulomb_force, plan_time_optimal_friction
 
 #: Window half-widths (samples) around the continuous move's switches and reversals; None: every sample free.
 WIDTHS = (4, 16, 64, None)

@@ -14,7 +14,8 @@ from scipy.optimize import linprog
 
 from flexmotion_ros.core import ModalModel, MoveProblem, plan_time_optimal, rest_to_rest, simulate
 from flexmotion_ros.core.friction.contact import simulate_coulomb
-from flexmotion_ros.core.friction.sampled_lp import FrictionLP, consistent_pattern, fastest_samples
+from flexmotion_ros.core.friction.pattern_search import consistent_pattern, fastest_samples
+from flexmotion_ros.core.friction.sampled_lp import FrictionLP
 from flexmotion_ros.core.friction.structure import bang_bang_guess, has_stick_arcs
 from flexmotion_ros.core.simulation.exact import PiecewiseConstant
 

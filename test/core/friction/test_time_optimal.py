@@ -38,10 +38,8 @@ from flexmotion_ros.core.friction.contact import (
     simulate_contact,
     simulate_coulomb,
 )
-from flexmotion_ros.core.friction.time_optimal import (
-    plan_time_optimal_friction,
-    rigid_friction_time,
-)
+from flexmotion_ros.core.friction.lower_bound import rigid_friction_time
+from flexmotion_ros.core.friction.time_optimal import plan_time_optimal_friction
 from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
