@@ -35,10 +35,10 @@ bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
 test and refined by Brent's method on the matrix-exponential solution.  The
 simulator never steps over an event.
 
-The planners built on this simulator: :mod:`.friction_time_optimal` (the
-bang-bang extremal, :func:`~.friction_time_optimal.plan_time_optimal_friction`),
-its certificate :mod:`.friction_certificate` and the zero-order-hold version
-:mod:`.friction_zoh` (:func:`~.friction_zoh.plan_time_optimal_friction_zoh`).
+The planners built on this simulator: :mod:`.time_optimal` (the
+bang-bang extremal, :func:`~.time_optimal.plan_time_optimal_friction`),
+its certificate :mod:`.certificate` and the zero-order-hold version
+:mod:`.zoh` (:func:`~.zoh.plan_time_optimal_friction_zoh`).
 """
 
 from __future__ import annotations

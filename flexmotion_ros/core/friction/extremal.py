@@ -1,7 +1,7 @@
 """The bang-bang extremal of a move under Coulomb friction: unknowns, residual, Newton.
 
-Shared by the planner (:mod:`.friction_time_optimal`) and its certificate
-(:mod:`.friction_certificate`).
+Shared by the planner (:mod:`.time_optimal`) and its certificate
+(:mod:`.certificate`).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from a starting point found in turn by
 1. continuation in ``F`` from the certified frictionless optimum
    (:mod:`.continuation`, bounded: it stops where the structure changes);
 2. the structure of the fewest-sample move at a coarse rate
-   (:mod:`.sampled_lp`: between reversals the friction is a known force, so
+   (:mod:`.sampled_lp` and :mod:`.pattern_search`: between reversals the friction is a known force, so
    for a velocity-sign pattern the move is an LP; the pattern is iterated to
    consistency), read off and polished (:mod:`.structure`).  The first
    sample period comes from the proved rigid-body bound (damped too); where
