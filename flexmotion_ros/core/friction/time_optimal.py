@@ -77,7 +77,7 @@ def check_coulomb_force(coulomb_force, u_max: float) -> float:
 
 
 def plan_time_optimal_friction(
-    problem: MoveProblem, coulomb_force: float, rate_hz: float | None = None
+    problem: MoveProblem, coulomb_force: float, rate_hz: float | None = None, *, continuation: bool = True
 ) -> FrictionProfile:
     """Bang-bang move to rest under rigid-body Coulomb friction, checked by exact simulation.
 
@@ -90,6 +90,9 @@ def plan_time_optimal_friction(
     rate_hz : float, optional
         Command rate (Hz) of the sampled plan to come: the coarse sampled moves use a whole number of
         its periods, so an ``exact_sampled`` result is itself a command sequence at this rate.
+    continuation : bool
+        False: skip step 1 (the zero-order-hold planner's fallback when no sequence near the continued
+        extremal passes its check: the sampled structure search then gives a sequence at the rate).
 
     Returns
     -------
@@ -148,7 +151,7 @@ def plan_time_optimal_friction(
 
     best: FrictionProfile | None = None
     # 1. the fast path: continuation in F from the frictionless optimum (bounded)
-    cont = continue_in_friction(problem, base, F, scale)
+    cont = continue_in_friction(problem, base, F, scale) if continuation else None
     steps = 0
     if cont is not None:
         ext, y, steps = cont

@@ -620,3 +620,29 @@ def test_continuation_reaches_the_force_where_it_ran_out_of_evaluations():
     states = exact.run(problem.x0, prof.input(), np.concatenate([np.linspace(0.0, T, 65), [2.0 * T]])).states
     scale = np.max(np.abs(states - m.rest_state(goal)), axis=0)
     assert np.max(np.abs(states[-2:] - m.rest_state(goal)) / scale) < 1e-9
+
+
+def test_zoh_falls_back_on_the_structure_search_when_the_continued_extremal_has_no_sequence():
+    """Fuzz case 362 of seed 18 (a 73 s move of a damped rigid body): the continuation reaches ``F`` at once
+    and the extremal is certified, but no 100 Hz sequence near it passes the check up to 4 x its samples;
+    with no exact sampled move found on the way the ZOH raised.  It now runs the sampled structure search at
+    the rate and streams that exact move: at rest at the target and after, within the bound."""
+    m = ModalModel(
+        b0=3.4137893386325913,
+        c=-0.9639452958944782,
+        omega=(0.30702563085856543, 1.3404514537336292, 37.2354694594352),
+        zeta=(0.1498471141085232, 0.20901955928225677, 0.2326249390516098),
+        b=(1.0979924537225867, 0.15936693099269644, -0.47193330932205757),
+    )
+    u_max, F, goal = 0.9668119924018779, 0.04531828615843266, -218.26491923028965
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    config = PlannerConfig(model=m, u_max=u_max, method="time_optimal_friction", options={"coulomb_force": F})
+    result = plan_move(config, problem, 100.0)
+    sp = result.sampled
+    assert np.max(np.abs(sp.commands)) <= u_max
+    assert sp.duration >= result.continuous.duration
+    exact = FrictionSystem(m.A(), m.B(), rigid_contact(m, F))
+    T = sp.duration
+    states = exact.run(problem.x0, sp.input(), np.concatenate([np.linspace(0.0, T, 65), [2.0 * T]])).states
+    scale = np.max(np.abs(states - m.rest_state(goal)), axis=0)
+    assert np.max(np.abs(states[-2:] - m.rest_state(goal)) / scale) < 1e-8
