@@ -50,7 +50,8 @@ from scipy.linalg import expm
 from scipy.optimize import linprog
 from scipy.sparse import coo_matrix
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+# FLEXMOTION_TREE: plan with the package of another checkout (an A/B of two trees with the same bench)
+sys.path.insert(0, os.environ.get("FLEXMOTION_TREE") or os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 from flexmotion_ros.core import ModalModel, MoveProblem, PlannerConfig, plan_time_optimal  # noqa: E402
 from flexmotion_ros.core.errors import InputError, UnreachableError  # noqa: E402
 from flexmotion_ros.core.friction.contact import FrictionSystem  # noqa: E402
@@ -252,7 +253,7 @@ def run_case(method: str, seed: int, index: int) -> dict:
         return out
     out["reproducer"] = reproducer(case, method, option)
     config = PlannerConfig(model=model, u_max=case["u_max"], method=method, options=option)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         result = plan_move(config, problem, RATE_HZ)
     except (InputError, UnreachableError) as exc:
@@ -270,6 +271,8 @@ def run_case(method: str, seed: int, index: int) -> dict:
         )
         return out
     out["time_s"] = time.perf_counter() - t0
+    out["cpu_s"] = time.process_time() - c0  # this process's CPU time: less sensitive to a loaded machine
+    out["duration_s"] = float(getattr(result.continuous, "duration", math.nan))
     out["status"] = "plan"
     if method == "time_optimal_friction":
         out["certified"] = bool(result.continuous.certified)
@@ -339,6 +342,9 @@ def summary(method: str, rows: list[dict]) -> list[str]:
             f"  time (plan_move, s): median {np.median(times):.3f}  p99 {np.percentile(times, 99):.3f}  "
             f"max {np.max(times):.3f}  (hangs counted at the guard)"
         )
+    cpu = np.array([r["cpu_s"] for r in plans if "cpu_s" in r])
+    if cpu.size:
+        lines.append(f"  CPU time of the plans (s): median {np.median(cpu):.3f}  p99 {np.percentile(cpu, 99):.3f}")
     if plans and method == "limited":
         claims = {}
         for r in plans:
@@ -413,7 +419,9 @@ def main() -> None:
                 rows.append(r)
                 if args.verbose or r["status"] in ("error", "hang") or r.get("check"):
                     print(
-                        f"  [{m} {i}] {r['status']} {r.get('time_s', 0):.3f}s {r.get('reason', '')} {r.get('check') or ''}",
+                        f"  [{m} {i}] {r['status']} {r.get('time_s', 0):.3f}s cpu {r.get('cpu_s', 0):.3f}s "
+                        f"T {r.get('duration_s', 0):.6g}s {r.get('cert_status', '')} {r.get('reason', '')} "
+                        f"{r.get('check') or ''}",
                         flush=True,
                     )
             print("\n".join(summary(m, rows)), flush=True)

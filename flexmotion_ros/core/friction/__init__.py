@@ -2,11 +2,8 @@
 
 from .certificate import FrictionCertificate
 from .contact import Contact, FrictionSystem, simulate_coulomb
-from .time_optimal import (
-    FrictionProfile,
-    check_coulomb_force,
-    plan_time_optimal_friction,
-)
+from .profile import FrictionProfile
+from .time_optimal import check_coulomb_force, plan_time_optimal_friction
 from .zoh import plan_time_optimal_friction_zoh
 
 __all__ = [

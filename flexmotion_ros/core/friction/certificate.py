@@ -1,7 +1,7 @@
 """Certificate of a bang-bang move under Coulomb friction: the hybrid Pontryagin conditions.
 
 Along the exact friction trajectory of a move from
-:func:`~.friction_time_optimal.plan_time_optimal_friction` the switching
+:func:`~.time_optimal.plan_time_optimal_friction` the switching
 function ``B^T lambda`` (with the costate jumps at velocity reversals) must
 vanish at every switch, change sign nowhere else (proved per costate piece by
 :func:`~.switching.isolate_roots`), have the sign of ``-u`` on every interval,

@@ -35,10 +35,10 @@ bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
 test and refined by Brent's method on the matrix-exponential solution.  The
 simulator never steps over an event.
 
-The planners built on this simulator: :mod:`.friction_time_optimal` (the
-bang-bang extremal, :func:`~.friction_time_optimal.plan_time_optimal_friction`),
-its certificate :mod:`.friction_certificate` and the zero-order-hold version
-:mod:`.friction_zoh` (:func:`~.friction_zoh.plan_time_optimal_friction_zoh`).
+The planners built on this simulator: :mod:`.time_optimal` (the
+bang-bang extremal, :func:`~.time_optimal.plan_time_optimal_friction`),
+its certificate :mod:`.certificate` and the zero-order-hold version
+:mod:`.zoh` (:func:`~.zoh.plan_time_optimal_friction_zoh`).
 """
 
 from __future__ import annotations
@@ -56,6 +56,8 @@ from ..simulation.exact import PiecewiseConstant, step_matrices
 from ..simulation.modal_response import ModalResponse
 
 STICK = 0  # mode of a stuck contact (sliding modes are +1, -1)
+#: Step matrices a :class:`FrictionSystem` keeps per step length (cleared when full).
+STEP_CACHE_SIZE = 256
 
 
 # ----------------------------------------------------------------- the contact
@@ -173,6 +175,7 @@ class FrictionSystem:
         nz = np.flatnonzero(c.C)
         self.unit = int(nz[0]) if nz.size == 1 and c.C[nz[0]] == 1.0 else None
         self._wmax = {}
+        self._steps: dict[tuple[bool, float], tuple] = {}
         self.fast: ClosedForm | None = None
 
     @classmethod
@@ -222,12 +225,21 @@ class FrictionSystem:
                 out[:2] = x[0], 0.0
                 return out
             return Phi @ x + Gam * level - (self.F * mode) * Gg
+        key = (mode == STICK, h)
+        steps = self._steps.get(key)
+        if steps is None:  # the same matrix exponentials, looked up once per (stuck, h): a ZOH check at
+            # 1 kHz asks for the same period thousands of times, and step_matrices hashes A, B each time
+            if len(self._steps) > STEP_CACHE_SIZE:
+                self._steps.clear()
+            if mode == STICK:
+                steps = (*step_matrices(self.PA, self.PB, h), None)
+            else:
+                steps = (*step_matrices(self.A, self.B, h), step_matrices(self.A, self.contact.g, h)[1])
+            self._steps[key] = steps
+        Phi, Gam, Gg = steps
         if mode == STICK:
-            Phi, Gam = step_matrices(self.PA, self.PB, h)
             out = Phi @ x + Gam * level
         else:
-            Phi, Gam = step_matrices(self.A, self.B, h)
-            _, Gg = step_matrices(self.A, self.contact.g, h)
             out = Phi @ x + Gam * level - (self.F * mode) * Gg
         if mode == STICK:
             self._zero_y(out)

@@ -15,16 +15,12 @@ with ``c <= 0`` the velocity is monotone within a sample, so signs at the
 instants are signs everywhere).  ``t <= u_max`` means ``K`` samples suffice for
 this pattern.
 
-:func:`consistent_pattern` finds a pattern by the fixed point the brief asks
-for: solve with the friction of pattern ``s`` as a known disturbance and no
-sign rows, take the signs of the resulting velocity as the next pattern, until
-they agree (then the signed LP is solved once more, so the result is exactly
-consistent).  :func:`fastest_samples` searches the fewest samples at one rate.
+Which pattern, and how many samples, is :mod:`.pattern_search`.
 
 A pattern entry 0 holds the body by friction for that sample (stuck:
 ``v = 0`` at both ends, ``|u_k| <= F``, no effect of ``u_k`` on the rigid
 body, the modes driven as ever): moves that must rest on the way while the
-modes are steered (:func:`consistent_pattern` with ``stick=True``).
+modes are steered.
 
 Nothing here is a proof of optimality: a pattern is a guess, and the LP is
 exact only for it.  Every sequence a planner returns is checked by the
@@ -33,7 +29,6 @@ event-located friction simulation of :mod:`.contact`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,8 +52,6 @@ SIGN_ROUNDS = 8
 MU_MAX = 1e12
 #: A stuck sample holds ``|u| <= STICK_MARGIN F``: inside the friction band, so rounding cannot make it slip.
 STICK_MARGIN = 1.0 - 1e-6
-#: Fixed-point iterations of the velocity-sign pattern.
-PATTERN_ROUNDS = 3
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -339,170 +332,3 @@ class FrictionLP:
             if out[k] == 0.0:
                 out[k] = out[k - 1] if k else (s[0] if s.size else 1.0)
         return out
-
-
-def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = False) -> FrictionSolution | None:
-    """A pattern consistent with its own least-peak move (fixed point from ``s0``), solved with sign rows.
-
-    The fixed point moves reversals to where the move made with the previous
-    pattern's friction reverses; without convergence in
-    :data:`PATTERN_ROUNDS` the last pattern is used (the sign rows still make
-    the result consistent).  Both the fixed point and ``s0`` itself are solved
-    with sign rows; the smaller peak wins.
-
-    ``stick=True``: where the move would go backwards the body is held
-    instead (pattern 0: stuck, ``|u| <= F``), and every pattern of the
-    iteration is solved with sign rows (the smallest peak wins): for moves
-    that must rest on the way while the modes are steered.
-    """
-    if stick:
-        return _stick_pattern(lp, K, s0)
-    s = np.asarray(s0, float).copy()
-    seen = []
-    for _ in range(PATTERN_ROUNDS):
-        sol = lp.solve(K, s, signs=False)
-        if sol is None:
-            break
-        nxt = lp.pattern_of(sol.u, s)
-        if np.array_equal(nxt, s) or any(np.array_equal(nxt, p) for p in seen):
-            break
-        seen.append(s)
-        s = nxt
-    best = None
-    for cand in (s, np.asarray(s0, float)):
-        if best is not None and np.array_equal(cand, best.pattern):
-            continue
-        sol = lp.solve(K, cand, signs=True)
-        if sol is not None and (best is None or sol.t < best.t):
-            best = sol
-    return best
-
-
-#: Rounds of the stick-instead-of-reverse iteration.
-STICK_ROUNDS = 5
-#: Periods of the slowest mode the body is held at the end of the first stuck candidate.
-STICK_TAIL_PERIODS = 4.0
-
-
-def _stick_pattern(lp: FrictionLP, K: int, s0: np.ndarray) -> FrictionSolution | None:
-    direction = -1.0 if lp.x0[0] > 0.0 else 1.0  # lp.x0 is the start relative to the target
-    s = np.where(np.asarray(s0, float) == direction, direction, 0.0)
-    best, seen = None, []
-    omega = lp.problem.model.omega
-    if omega and K > 1:
-        # first candidate: slide forward, then hold the body for the last few periods of the slowest mode
-        # (the modes brought to rest by |u| <= F alone: a long damped move whose end game needs the body
-        # to wait; the iteration below rarely finds so long a rest)
-        n = min(K // 2, math.ceil(STICK_TAIL_PERIODS * 2.0 * math.pi / min(omega) / lp.dt))
-        tail = np.full(K, direction)
-        tail[K - n :] = 0.0
-        best = lp.solve(K, tail, signs=True)
-    for _ in range(STICK_ROUNDS):
-        signed = lp.solve(K, s, signs=True)
-        if signed is not None and (best is None or signed.t < best.t):
-            best = signed
-        sol = lp.solve(K, s, signs=False)
-        if sol is None:
-            break
-        v = lp.velocities(sol.u, s)
-        nxt = np.where(direction * (v[:-1] + v[1:]) > 0.0, direction, 0.0)
-        if any(np.array_equal(nxt, p) for p in seen + [s]):
-            break
-        seen.append(s)
-        s = nxt
-    return best
-
-
-def template_pattern(template, K: int) -> np.ndarray:
-    """``template(tau)`` (velocity sign at normalised time ``tau`` in [0, 1]) on ``K`` intervals."""
-    return np.asarray(template((np.arange(K) + 0.5) / K), float)
-
-
-def fastest_samples(
-    lp: FrictionLP, template, K_guess: int, K_min: int = 1, K_max: int | None = None, stick: bool = False
-) -> FrictionSolution | None:
-    """Fewest samples (searched, not proved) with least peak ``<= u_max``; patterns from ``template``.
-
-    One signed LP per probed count with the current pattern (the template,
-    then the last pattern that worked, mapped by normalised time): up
-    geometrically until a count works, down geometrically until one does
-    not, then bisection.  Where the current pattern fails (the first probe,
-    and one count below the count found) the pattern is iterated to
-    consistency (:func:`consistent_pattern`); a better pattern restarts the
-    search down from there (a few rounds).  ``stick``: the fixed point holds
-    the body where it would go back (see :func:`consistent_pattern`).
-    """
-    um = lp.problem.u_max * (1.0 + 1e-12)
-    K_max = K_max if K_max is not None else max(8 * K_guess, K_guess + 200)
-    tried: dict[int, FrictionSolution | None] = {}
-    state = {"template": template}
-
-    def remember(sol: FrictionSolution) -> None:
-        pat = sol.pattern
-        state["template"] = lambda tau, pat=pat: pat[np.minimum((np.asarray(tau) * pat.size).astype(int), pat.size - 1)]
-
-    def feasible(sol: FrictionSolution | None) -> bool:
-        return sol is not None and sol.t <= um
-
-    def ok(K: int) -> bool:
-        if K not in tried:
-            tried[K] = lp.solve(K, template_pattern(state["template"], K))
-            if feasible(tried[K]):
-                remember(tried[K])
-        return feasible(tried[K])
-
-    def fixed_point(K: int) -> bool:
-        sol = consistent_pattern(lp, K, template_pattern(state["template"], K), stick)
-        if not feasible(sol):
-            return False
-        tried[K] = sol
-        remember(sol)
-        return True
-
-    K = max(K_guess, K_min)
-    step = max(1, K // 50)
-    first = True
-    flat, last = 0, None
-    while not ok(K):
-        if (first or stick) and fixed_point(K):
-            break
-        first = False
-        if tried[K] is not None and last is not None:
-            # more samples, the same least peak (three times): the end game cannot be resolved at this
-            # period (samples too long for the modes to be brought to rest), so no count will do;
-            # finer samples are the caller's move
-            flat = flat + 1 if abs(tried[K].t - last) <= 1e-6 * last else 0
-            if flat >= 3:
-                lp.stalled = True
-                return None
-        last = tried[K].t if tried[K] is not None else None
-        if K >= K_max:
-            return None
-        K = min(K_max, K + step)
-        step *= 2
-    hi = K
-    for _ in range(3):
-        lo, step = None, max(1, hi // 50)
-        while lo is None:
-            cand = hi - step
-            if cand < K_min:
-                lo = K_min - 1
-            elif ok(cand):
-                hi = cand
-                step *= 2
-            else:
-                lo = cand
-        lo = max([lo] + [k for k in tried if k < hi and not feasible(tried[k])])
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if ok(mid):
-                hi = mid
-            else:
-                lo = mid
-        if hi - 1 < K_min or not fixed_point(hi - 1):
-            break
-        # a better pattern: counts below may work now
-        hi -= 1
-        for k in [k for k in tried if k < hi]:
-            del tried[k]
-    return tried[hi]

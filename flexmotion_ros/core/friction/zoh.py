@@ -26,12 +26,9 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL
 from .certificate import FrictionStatus
 from .contact import FrictionSystem, simulate_coulomb
+from .profile import FrictionProfile
 from .sampled_lp import FrictionLP
-from .time_optimal import (
-    FrictionProfile,
-    check_coulomb_force,
-    plan_time_optimal_friction,
-)
+from .time_optimal import check_coulomb_force, plan_time_optimal_friction
 
 #: Window half-widths (samples) around the continuous move's switches and reversals; None: every sample free.
 WIDTHS = (4, 16, 64, None)
@@ -39,6 +36,9 @@ WIDTHS = (4, 16, 64, None)
 FULL_SAMPLES = 4000
 #: Planning-time budget of the sampled search (s): past it, it stops and says so.
 TIME_BUDGET_S = 20.0
+#: The same budget when an exact sampled move is known (the continuous move's alternative): past it,
+#: or past that move's sample count, the search stops and that move is used.
+ALT_TIME_BUDGET_S = 2.0
 #: Sample counts are searched up to this many times ``ceil(T / dt)`` (plus ``EXTRA_SAMPLES``).
 MAX_FACTOR = 4
 EXTRA_SAMPLES = 200
@@ -153,13 +153,22 @@ def plan_time_optimal_friction_zoh(
     lev = np.asarray(continuous.levels, float)
     changes = np.asarray(continuous.switch_times, float)[np.abs(np.diff(lev)) > 1e-6 * um]  # where the level moves
 
+    # an exact sampled move found on the way (an uncertified continuous move's alternative): a sequence
+    # of its count is known, so the search never goes past it, and gives up sooner (fuzz case 43 of seed
+    # 18 spent 14 s in windowed LPs near an uncertified bang-bang move before falling back on it)
+    alt = continuous.alternative
+    alt_u = _held_samples(alt, dt) if alt is not None else None
+    budget_s = TIME_BUDGET_S if alt_u is None else ALT_TIME_BUDGET_S
+    if alt_u is not None:
+        K_cap = max(1, min(K_cap, alt_u.size))
+
     def attempt(K: int):
         """``(u, states)`` of a sequence of ``K`` samples that passes the exact check, or None."""
         if K in found:
             return found[K]
-        if time.perf_counter() - t0 > TIME_BUDGET_S:
+        if time.perf_counter() - t0 > budget_s:
             raise SolverError(
-                f"sampled friction planner: no sequence within the {TIME_BUDGET_S:g} s planning budget (tried up to "
+                f"sampled friction planner: no sequence within the {budget_s:g} s planning budget (tried up to "
                 f"{max(found, default=K)} samples; {reasons[-1] if reasons else 'no feasible linear program'})"
             )
         found[K] = None
@@ -181,6 +190,8 @@ def plan_time_optimal_friction_zoh(
                 if last is not None and np.array_equal(free, last):
                     continue  # the same LP again
                 last = free
+                if alt_u is not None and time.perf_counter() - t0 > budget_s:
+                    raise SolverError("sampled friction planner: planning budget spent")  # the known move then
                 if free.all():  # every sample free: the chain form (sign conditions as bounds)
                     if K > FULL_SAMPLES:
                         continue
@@ -237,8 +248,16 @@ def plan_time_optimal_friction_zoh(
         # no sequence near the continuous move (its velocity pattern does not survive the sampling, or the
         # budget ran out): the exact sampled move found on the way, if there is one, each command held a
         # whole number of periods (checked below like any other)
-        alt = continuous.alternative
-        u = _held_samples(alt, dt) if alt is not None else None
+        u = alt_u
+        spent = time.perf_counter() - t0 > budget_s  # past the budget it stops (one line), as ever
+        if u is None and not spent and continuous.certificate.status != FrictionStatus.SAMPLED:
+            # no exact sampled move known (the continuation gave the continuous move at once): the
+            # structure search at the rate finds one (fuzz case 362 of seed 18: a certified 73 s move of a
+            # damped rigid body whose windowed LPs found no sequence up to 4 x its samples)
+            other = plan_time_optimal_friction(problem, F, rate, continuation=False)
+            u = _held_samples(other, dt)
+            if u is None and other.alternative is not None:
+                u = _held_samples(other.alternative, dt)
         if u is None:
             raise
         states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states

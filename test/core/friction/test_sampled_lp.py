@@ -6,6 +6,7 @@ and the event-located friction simulation with matrix exponentials.
 """
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -14,7 +15,8 @@ from scipy.optimize import linprog
 
 from flexmotion_ros.core import ModalModel, MoveProblem, plan_time_optimal, rest_to_rest, simulate
 from flexmotion_ros.core.friction.contact import simulate_coulomb
-from flexmotion_ros.core.friction.sampled_lp import FrictionLP, consistent_pattern, fastest_samples
+from flexmotion_ros.core.friction.pattern_search import consistent_pattern, count_for_peak, fastest_samples
+from flexmotion_ros.core.friction.sampled_lp import FrictionLP
 from flexmotion_ros.core.friction.structure import bang_bang_guess, has_stick_arcs
 from flexmotion_ros.core.simulation.exact import PiecewiseConstant
 
@@ -198,3 +200,34 @@ def test_stuck_samples_hold_the_body_and_the_move_rests_exactly():
     assert np.max(np.abs(x[held + 1, 0] - x[held, 0])) < 1e-12 and np.max(np.abs(x[held + 1, 1])) < 1e-12
     end = simulate_coulomb(m, problem.x0, PiecewiseConstant.from_samples(sol.u, dt), F, [K * dt, K * dt + 30.0])
     assert np.max(np.abs(end - m.rest_state(goal))) < 1e-9
+
+
+# ------------------------------------------------------------------ fewer LPs (issue 18)
+def test_count_for_peak_scales_the_excess_over_friction_as_k_squared():
+    sol = types.SimpleNamespace(t=5.0)
+    # (t - F) K^2 constant: (5 - 1) 64^2 = (u_max - 1) K^2 -> K = 64 sqrt(4 / 1) = 128, +0.1 % rounded up
+    assert count_for_peak(64, sol, 1.0, 2.0) == 129
+    assert count_for_peak(100, types.SimpleNamespace(t=1.5), 1.0, 3.0) == 50  # below u_max: fewer samples
+    assert count_for_peak(64, None, 1.0, 2.0) is None
+    assert count_for_peak(64, types.SimpleNamespace(t=0.5), 1.0, 2.0) is None  # not above friction: no scale
+
+
+def test_a_period_too_fine_for_the_move_is_left_after_one_relaxed_lp():
+    """Fuzz case 39 of seed 18 (a 9.2 s move first tried with 10 ms samples): no signed LP has a solution
+    up to ``K_max``; the LP without sign rows (a relaxation: its least peak is a lower bound for the pattern)
+    says the count needed is far past ``K_max``, so the search stops after a handful of LPs (it probed 14
+    counts, 24 LPs for two patterns, before) and the caller tries coarser samples."""
+    m = ModalModel(
+        b0=0.8840645134751459,
+        c=0.0,
+        omega=(1.189875684135764, 36.645880960090786),
+        zeta=(0.20862040732839457, 0.09533200224712425),
+        b=(-0.22399973091343323, 1.7767336588734592),
+    )
+    u_max, F, goal = 0.2767137129265001, 0.1124859552495107, -0.0003093646103619222
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    lp = FrictionLP(problem, F, 0.01)
+    direction = -1.0
+    sol = fastest_samples(lp, lambda tau: np.full(np.shape(tau), direction), 64, K_max=256)
+    assert sol is None
+    assert lp.solves <= 8

@@ -7,10 +7,12 @@ of the matrix-exponential method, not the reference for the planners, which
 are checked with the exact simulator).
 """
 
+import copy
 import json
 import math
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -38,10 +40,11 @@ from flexmotion_ros.core.friction.contact import (
     simulate_contact,
     simulate_coulomb,
 )
-from flexmotion_ros.core.friction.time_optimal import (
-    plan_time_optimal_friction,
-    rigid_friction_time,
-)
+from flexmotion_ros.core.friction.lower_bound import rigid_friction_time
+from flexmotion_ros.core.friction.pattern_search import fastest_samples
+from flexmotion_ros.core.friction.profile import sampled_profile
+from flexmotion_ros.core.friction.sampled_lp import FrictionLP
+from flexmotion_ros.core.friction.time_optimal import plan_time_optimal_friction
 from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
@@ -557,3 +560,89 @@ def test_issue18_damped_rigid_body_cases_plan_exact_moves(case):
     if cont.duration < 20.0:  # an independent event-located ODE integration (slow on long moves)
         ref = ivp_modal_friction(m, F, m.rest_state(), cont.input())[-1]
         assert abs(ref[0] - goal) < 1e-6 * abs(goal)
+
+
+# ------------------------------------------- issue 18: planning time and the continuation's reach
+def test_zoh_never_searches_past_the_exact_sampled_move_it_already_has(monkeypatch, wb_friction):
+    """An uncertified continuous move comes with an exact sampled move (``alternative``): the 100 Hz search
+    near the continuous move stops at that move's sample count and falls back on it (fuzz case 43 of
+    seed 18 spent 14 s in windowed LPs up to 4 x the count before falling back)."""
+    prof = copy.copy(wb_friction[0.3])
+    problem = prof.problem
+    lp = FrictionLP(problem, 0.3, 0.05)
+    sol = fastest_samples(lp, lambda tau: np.ones(np.shape(tau)), 100)
+    alt = sampled_profile(lp, sol, plan_time_optimal(problem), None, 0, time.perf_counter())
+    assert alt is not None and alt.sample_period == 0.05
+    prof.alternative = alt
+    counts = []
+
+    def no_sequence(self, K, *args, **kwargs):
+        counts.append(K)
+        return None
+
+    monkeypatch.setattr(FrictionLP, "solve", no_sequence)
+    monkeypatch.setattr(FrictionLP, "solve_windowed", no_sequence)
+    sp = plan_time_optimal_friction_zoh(problem, 0.3, 100.0, prof)
+    K_alt = round(alt.duration * 100.0)
+    assert sp.samples == K_alt  # the known move, each command held five periods
+    assert counts and max(counts) <= K_alt
+    x = simulate_coulomb(WB, WB.rest_state(), sp.input(), 0.3, [sp.duration, sp.duration + 3.0])
+    assert np.max(np.abs(x - WB.rest_state(1.0))) < 1e-11
+
+
+FUZZ_40 = (
+    ModalModel(
+        b0=1.8450403868093213,
+        c=0.0,
+        omega=(0.32451620618816157, 0.5479122110962255),
+        zeta=(0.26743592097649344, 0.13129812583788267),
+        b=(-1.0722289039157573, 1.4307325078123587),
+    ),
+    3.3225983038012408,
+    1.4169496116399825,
+    -66.48537417526029,
+)
+
+
+def test_continuation_reaches_the_force_where_it_ran_out_of_evaluations():
+    """Fuzz case 40 of seed 18: the continuation from the frictionless optimum ran out of its 48 exact runs
+    (two-sided differences: two per Jacobian column) and the planner returned a 35.38 s sampled move; with
+    one-sided columns and a shorter line search it reaches ``F``: a bang-bang move (levels +-u_max) of
+    16.93 s that rests at the target in the event-located simulation with matrix exponentials."""
+    m, u_max, F, goal = FUZZ_40
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.certificate.status != FrictionStatus.SAMPLED
+    assert np.allclose(np.abs(prof.levels), u_max)
+    assert prof.duration < 20.0 and prof.duration >= prof.lower_bound
+    exact = FrictionSystem(m.A(), m.B(), rigid_contact(m, F))
+    T = prof.duration
+    states = exact.run(problem.x0, prof.input(), np.concatenate([np.linspace(0.0, T, 65), [2.0 * T]])).states
+    scale = np.max(np.abs(states - m.rest_state(goal)), axis=0)
+    assert np.max(np.abs(states[-2:] - m.rest_state(goal)) / scale) < 1e-9
+
+
+def test_zoh_falls_back_on_the_structure_search_when_the_continued_extremal_has_no_sequence():
+    """Fuzz case 362 of seed 18 (a 73 s move of a damped rigid body): the continuation reaches ``F`` at once
+    and the extremal is certified, but no 100 Hz sequence near it passes the check up to 4 x its samples;
+    with no exact sampled move found on the way the ZOH raised.  It now runs the sampled structure search at
+    the rate and streams that exact move: at rest at the target and after, within the bound."""
+    m = ModalModel(
+        b0=3.4137893386325913,
+        c=-0.9639452958944782,
+        omega=(0.30702563085856543, 1.3404514537336292, 37.2354694594352),
+        zeta=(0.1498471141085232, 0.20901955928225677, 0.2326249390516098),
+        b=(1.0979924537225867, 0.15936693099269644, -0.47193330932205757),
+    )
+    u_max, F, goal = 0.9668119924018779, 0.04531828615843266, -218.26491923028965
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    config = PlannerConfig(model=m, u_max=u_max, method="time_optimal_friction", options={"coulomb_force": F})
+    result = plan_move(config, problem, 100.0)
+    sp = result.sampled
+    assert np.max(np.abs(sp.commands)) <= u_max
+    assert sp.duration >= result.continuous.duration
+    exact = FrictionSystem(m.A(), m.B(), rigid_contact(m, F))
+    T = sp.duration
+    states = exact.run(problem.x0, sp.input(), np.concatenate([np.linspace(0.0, T, 65), [2.0 * T]])).states
+    scale = np.max(np.abs(states - m.rest_state(goal)), axis=0)
+    assert np.max(np.abs(states[-2:] - m.rest_state(goal)) / scale) < 1e-8
