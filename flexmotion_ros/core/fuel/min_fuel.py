@@ -169,21 +169,33 @@ class FuelProfile:
         }
 
 
-def _initial_costate(problem, system, x0, T, time_optimal) -> np.ndarray:
-    """``nu`` from a coarse sampled LP; near ``T*``, a scaled time-optimal co-state."""
+#: The coarse sampled LP that seeds Newton's co-state: samples per half period of the fastest mode,
+#: and at most this many.  The seed only saves Newton iterations; HiGHS's time grows faster than
+#: the samples.  Fuzz case 39 (a 457 s move, a 26 rad/s mode): 16 samples per half period asked
+#: for 61,000 samples (9 s of HiGHS, twice) where Newton then took 58 ms; at 8,192 samples the LP
+#: takes 0.2 s and Newton 6 iterations, at 2,048 Newton missed (58 evaluations, 1.4 s).
+SEED_SAMPLES_PER_HALF_PERIOD = 4
+MAX_SEED_SAMPLES = 8192
+
+
+def _initial_costates(problem, system, x0, T, time_optimal):
+    """Starting co-states ``nu`` for Newton, best first (a generator: each is computed when asked for).
+
+    1. the dual of a coarse sampled LP (at most :data:`MAX_SEED_SAMPLES` samples);
+    2. the time-optimal co-state, scaled so that the coasts around its switches (width
+       ``2 / (alpha |S'|)``) add up to ``T - T*`` (the right start for ``T`` near ``T*``, where
+       the coarse LP is infeasible).
+    """
     wmax = float(np.max(system.wd)) if system.wd.size else 0.0
-    N = max(256, math.ceil(T * wmax / math.pi * 16))
-    for _ in range(3):
-        sol = min_fuel_lp(system, x0, problem.u_max, N, T / N)
-        if sol is not None:
-            return sol.nu
-        N *= 4
-    # T within a fine sample of T*: coasts of width 2 / (alpha |S'|) around the time-optimal switches
+    N = min(MAX_SEED_SAMPLES, max(256, math.ceil(T * wmax / math.pi * SEED_SAMPLES_PER_HALF_PERIOD)))
+    sol = min_fuel_lp(system, x0, problem.u_max, N, T / N)
+    if sol is not None:
+        yield sol.nu
     nu = -np.asarray(time_optimal.certificate.costate_final, dtype=float)
     tau = T - np.asarray(time_optimal.switch_times)
     _, dS = system.switching(nu, tau, derivative=True)
     total = float(np.sum(2.0 / np.abs(dS))) if tau.size else time_optimal.duration
-    return nu * total / max(T - time_optimal.duration, 1e-12 * T)
+    yield nu * total / max(T - time_optimal.duration, 1e-12 * T)
 
 
 def _time_optimal_as_fuel(problem: MoveProblem, to: BangBangProfile, t0: float) -> FuelProfile:
@@ -249,7 +261,13 @@ def plan_min_fuel(
             return _newton(problem, system, x0, T, np.asarray(nu0, float), max_iter, t0)
         except SolverError:
             pass  # a start from another move time can land on the wrong structure: start afresh
-    return _newton(problem, system, x0, T, _initial_costate(problem, system, x0, T, time_optimal), max_iter, t0)
+    error: SolverError | None = None
+    for nu in _initial_costates(problem, system, x0, T, time_optimal):
+        try:
+            return _newton(problem, system, x0, T, nu, max_iter, t0)
+        except SolverError as exc:  # a start that lands on another structure: the next start
+            error = exc
+    raise error
 
 
 def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
