@@ -31,7 +31,8 @@ from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..sampled.check import verified_samples
-from ..sampled.lp_tools import correct_arrival, lp_state_scale, sample_vectors
+from ..sampled.lp_tools import correct_arrival, sample_vectors
+from ..simulation.error_scale import state_scale
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
@@ -109,7 +110,11 @@ def min_fuel_lp(
     """
     G = sample_vectors(system, K, dt)
     w = -system.expm_x(K * dt, x0)
-    scale = lp_state_scale(system, x0, um, K * dt)
+    # LP units: the move's error scale (uniform and geometric instants).  The 33 uniform
+    # instants of ``lp_state_scale`` missed a fast, damped mode on a long move (fuzz case 191:
+    # 1.8e-24 for a 39 rad/s mode's rate, entries of 1e22): HiGHS answered "model error" at
+    # every sample count and the planner refused after 400 LPs (23 s)
+    scale = state_scale(system, x0, um, K * dt)
     result = None
     if nu_guess is not None:
         levels = _levels_from(G, nu_guess, dt)
