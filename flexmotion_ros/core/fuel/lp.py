@@ -32,6 +32,7 @@ from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.lp_tools import correct_arrival, sample_vectors
+from ..sampled.zoh import plan_time_optimal_zoh
 from ..simulation.error_scale import state_scale
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
@@ -185,12 +186,15 @@ def plan_min_fuel_zoh(
             "rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate"
         )
     K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
-    sol = None
-    K_stop = max(K, K_lo) + 400
-    while sol is None and K <= K_stop:
-        sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
-        if sol is None:
-            K += 1  # within a sample or so of T*: the ZOH needs a few more samples
+    sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
+    if sol is None:
+        # within a sample or so of T*: the ZOH needs the fewest samples of the sampled time-optimum
+        # (proved feasible), found by its own search, not by one LP per count (that was up to 400)
+        fewest = plan_time_optimal_zoh(move.with_continuous(time_optimal), rate).samples
+        for count in sorted({max(K + 1, fewest), fewest + 1}):
+            sol = min_fuel_lp(system, x0, um, count, dt, nu_guess)
+            if sol is not None:
+                break
     if sol is None:
         raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
     cmds = sol.u[::-1].copy()
