@@ -221,6 +221,68 @@ CONTINUATION_RTOL = 1e-10
 MAX_CONTINUATION_STEPS = 60
 
 
+def _polish_with_costate(
+    move: PreparedMove, T: float, switch_times: np.ndarray, signs: np.ndarray, bound: float, nu: np.ndarray
+):
+    """Newton on ``(t_1..t_L, u', nu)``: at rest at ``T`` and ``S(T - t_j) = 0`` at every switch.
+
+    With more switches than states (``L + 1 > n``) the arrival equations alone
+    leave a family of exact moves; :func:`_polish` lands on one near its start,
+    not on the optimum, whose certificate then fails until the root-find has
+    ``T*(u')`` to 1e-10 (fuzz case 227: 17 time-optimal solves).  Adding
+    Pontryagin's switching conditions for one co-state (``nu`` normalised
+    against the reference's direction) makes the system square.  Returns
+    ``(switch_times, u', residual)``.
+    """
+    sys = move.response
+    x0 = move.x0
+    n = x0.size
+    L = switch_times.size
+    scale = np.abs(x0) + bound * np.max(np.abs(sys.input_integral(np.linspace(0.0, T, 65))), axis=0)
+    scale = np.where(scale > 0.0, scale, 1.0)
+    eAx = sys.expm_x(T, x0)
+    ref = np.asarray(nu, float) * scale
+    ref = ref / np.linalg.norm(ref)
+
+    def resid(z):
+        t, ub, nus = z[:L], z[L], z[L + 1 :]
+        G = sys.input_integral(T - np.concatenate([[0.0], t, [T]]))
+        contrib = (signs[:, None] * (G[:-1] - G[1:])).sum(axis=0)
+        S = sys.switching(nus / scale, T - t)
+        return np.concatenate([(eAx + ub * contrib) / scale, S, [nus @ ref - 1.0]]), contrib
+
+    z = np.concatenate([switch_times, [bound], ref])
+    r, contrib = resid(z)
+    rn = float(np.max(np.abs(r)))
+    for _ in range(30):
+        if rn <= 4.0 * np.finfo(float).eps:
+            break
+        t, ub, nus = z[:L], z[L], z[L + 1 :]
+        J = np.zeros((n + L + 1, L + 1 + n))
+        E = sys.expm_B(T - t) / scale  # rows: e^{A tau_j} B in scaled units
+        J[:n, :L] = (ub * (signs[:-1] - signs[1:])[:, None] * E).T
+        J[:n, L] = contrib / scale
+        _, dS = sys.switching(nus / scale, T - t, derivative=True)
+        J[n : n + L, :L] = np.diag(-dS)
+        J[n : n + L, L + 1 :] = E
+        J[n + L, L + 1 :] = ref
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        h = 1.0
+        for _ in range(20):
+            zc = z + h * step
+            tc = zc[:L]
+            if zc[L] > 0.0 and (L == 0 or (tc[0] > 0.0 and tc[-1] < T and np.all(np.diff(tc) > 0.0))):
+                rc, cc = resid(zc)
+                rcn = float(np.max(np.abs(rc)))
+                if rcn < rn:
+                    break
+            h *= 0.5
+        else:
+            break
+        z, r, contrib, rn = zc, rc, cc, rcn
+    return z[:L], float(z[L]), float(np.max(np.abs(r[:n])))
+
+
 def _continuation_tangent(move: PreparedMove, T: float, t_sw: np.ndarray, signs: np.ndarray, ub: float):
     """``d(t_1..t_L, u')/dT`` along the fixed-structure solution curve (least squares), or None."""
     sys = move.response
@@ -348,7 +410,12 @@ def plan_fixed_time(problem: MoveProblem | PreparedMove, arrival_time: float) ->
 def _at_arrival(move: PreparedMove, T_req: float, prof: BangBangProfile, bound: float, T_star: float, t0: float):
     """``prof``'s switch structure polished (Newton) at exactly ``T_req`` and assembled; None if it fails."""
     signs = np.sign(prof.levels)
-    switch_times, bound, res = _polish(move, T_req, prof.switch_times * (T_req / prof.duration), signs, bound)
+    guess = prof.switch_times * (T_req / prof.duration)
+    if guess.size + 1 > move.x0.size and prof.certificate is not None:  # arrival alone: a family of moves
+        nu = -np.asarray(prof.certificate.costate_final, float)
+        switch_times, bound, res = _polish_with_costate(move, T_req, guess, signs, bound, nu)
+    else:
+        switch_times, bound, res = _polish(move, T_req, guess, signs, bound)
     if not (res <= CONTINUATION_RTOL and 0.0 < bound <= move.u_max * (1.0 + 1e-9)):
         return None
     try:
