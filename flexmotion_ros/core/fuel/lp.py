@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,12 +33,14 @@ from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..sampled.check import verified_samples
 from ..sampled.lp_tools import correct_arrival, sample_vectors
-from ..sampled.zoh import plan_time_optimal_zoh
 from ..simulation.error_scale import state_scale
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import HIGHS_OPTIONS, LP_GAP_RTOL, MAX_SAMPLES, T_STAR_RTOL
+
+#: Sample counts tried above an infeasible requested one when the fewest feasible is not known.
+MAX_EXTRA_COUNTS = 16
 
 
 def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
@@ -151,6 +154,7 @@ def plan_min_fuel_zoh(
     time_optimal: BangBangProfile | None = None,
     nu_guess: np.ndarray | None = None,
     continuous=None,
+    fewest_samples: Callable[[], int] | None = None,
 ) -> SampledProfile:
     """Minimum-fuel zero-order-hold sequence at ``rate_hz`` arriving at rest after ``ceil(move_time * rate_hz)`` samples.
 
@@ -158,6 +162,10 @@ def plan_min_fuel_zoh(
     ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
     ``problem`` may be a :class:`PreparedMove` (its responses are reused);
     ``rate_hz`` (Hz, ``> 0``) is checked here: a public entry point.
+
+    ``fewest_samples``: a callable giving the sampled time-optimum's fewest samples
+    (:func:`~flexmotion_ros.core.sampled.zoh.plan_time_optimal_zoh`), asked for only if the
+    requested count is infeasible; without it, :data:`MAX_EXTRA_COUNTS` counts up are tried.
 
     Returns
     -------
@@ -188,10 +196,14 @@ def plan_min_fuel_zoh(
     K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
     sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
     if sol is None:
-        # within a sample or so of T*: the ZOH needs the fewest samples of the sampled time-optimum
-        # (proved feasible), found by its own search, not by one LP per count (that was up to 400)
-        fewest = plan_time_optimal_zoh(move.with_continuous(time_optimal), rate).samples
-        for count in sorted({max(K + 1, fewest), fewest + 1}):
+        # within a sample or so of T*: the ZOH needs more samples.  With ``fewest_samples`` (the
+        # sampled time-optimum's proved fewest count) one more LP; without, a few counts up (this
+        # was one LP per count, up to 400)
+        counts = range(K + 1, K + 1 + MAX_EXTRA_COUNTS)
+        if fewest_samples is not None:
+            fewest = int(fewest_samples())
+            counts = sorted({max(K + 1, fewest), fewest + 1})
+        for count in counts:
             sol = min_fuel_lp(system, x0, um, count, dt, nu_guess)
             if sol is not None:
                 break
