@@ -265,9 +265,23 @@ def plan_min_fuel(
     for nu in _initial_costates(problem, system, x0, T, time_optimal):
         try:
             return _newton(problem, system, x0, T, nu, max_iter, t0)
+        except SingularArc:  # the dual's maximum leaves a miss: no start does better
+            raise
         except SolverError as exc:  # a start that lands on another structure: the next start
             error = exc
     raise error
+
+
+class SingularArc(SolverError):
+    """No bang-off-bang input is optimal: Newton reached the dual's maximum and the final state is still missed.
+
+    (``|S| = 1`` on an interval: the optimum uses a fraction of the bound there.)  ``costate``
+    is the maximiser reached, a good guess of the sampled LP's saturated samples.
+    """
+
+    def __init__(self, message: str, costate: np.ndarray) -> None:
+        super().__init__(f"{message} (no bang-off-bang optimum: a singular arc, |B^T lambda| = 1 on an interval)")
+        self.costate = np.asarray(costate, float)
 
 
 #: Most evaluations of the dual (each isolates the crossings of ``|S| = 1`` over ``[0, T]``) per
@@ -336,7 +350,12 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
         nu, ev = cand, ev_c
     if float(np.max(np.abs(ev.grad / s))) > best[0]:
         _, nu, ev = best
-    return _assemble(problem, system, nu, ev, T, it, t0)
+    try:
+        return _assemble(problem, system, nu, ev, T, it, t0)
+    except SolverError as exc:
+        if flat >= 4:
+            raise SingularArc(str(exc), nu) from None
+        raise
 
 
 def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProfile:
