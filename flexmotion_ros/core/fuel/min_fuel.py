@@ -265,23 +265,27 @@ def plan_min_fuel(
     for nu in _initial_costates(problem, system, x0, T, time_optimal):
         try:
             return _newton(problem, system, x0, T, nu, max_iter, t0)
-        except SingularArc:  # the dual's maximum leaves a miss: no start does better
-            raise
-        except SolverError as exc:  # a start that lands on another structure: the next start
-            error = exc
+        except BangOffBangMissed as exc:
+            if exc.singular:  # the dual's maximum leaves a miss: no start does better
+                raise
+            error = exc  # a start that lands on another structure: the next start
     raise error
 
 
-class SingularArc(SolverError):
-    """No bang-off-bang input is optimal: Newton reached the dual's maximum and the final state is still missed.
+class BangOffBangMissed(SolverError):
+    """Newton found no bang-off-bang input that arrives: the final state is still missed.
 
-    (``|S| = 1`` on an interval: the optimum uses a fraction of the bound there.)  ``costate``
-    is the maximiser reached, a good guess of the sampled LP's saturated samples.
+    ``singular``: Newton reached the dual's maximum with the miss left (``|S| = 1`` on an
+    interval, a singular arc: no start does better); otherwise its budget ran out.
+    ``costate``: the best dual iterate, a good guess of the sampled LP's saturated samples
+    (the windowed LP is accepted only when its duality gap over every sample closes).
     """
 
-    def __init__(self, message: str, costate: np.ndarray) -> None:
-        super().__init__(f"{message} (no bang-off-bang optimum: a singular arc, |B^T lambda| = 1 on an interval)")
+    def __init__(self, message: str, costate: np.ndarray, singular: bool) -> None:
+        why = "a singular arc, |B^T lambda| = 1 on an interval" if singular else "Newton's budget ran out"
+        super().__init__(f"{message} ({why})")
         self.costate = np.asarray(costate, float)
+        self.singular = singular
 
 
 #: Most evaluations of the dual (each isolates the crossings of ``|S| = 1`` over ``[0, T]``) per
@@ -353,9 +357,7 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
     try:
         return _assemble(problem, system, nu, ev, T, it, t0)
     except SolverError as exc:
-        if flat >= 4:
-            raise SingularArc(str(exc), nu) from None
-        raise
+        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4) from None
 
 
 def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProfile:

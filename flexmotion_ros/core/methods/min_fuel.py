@@ -10,7 +10,7 @@ from ..config import PlannerConfig
 from ..errors import ConfigError, SolverError
 from ..fuel.curve import fuel_time_curve, sampled_fuel_curve
 from ..fuel.lp import plan_min_fuel_zoh
-from ..fuel.min_fuel import FuelProfile, SingularArc, plan_min_fuel
+from ..fuel.min_fuel import BangOffBangMissed, FuelProfile, plan_min_fuel
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
 from ..sampled.zoh import plan_time_optimal_zoh
@@ -54,9 +54,9 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
     try:
         continuous = plan_min_fuel(move, move_time, to)
         nu = None if continuous.extra.get("time_optimal") else continuous.costate
-    except SingularArc as exc:
-        # a singular arc (|B^T lambda| = 1 on an interval): the LP optimum stays exact, and the
-        # dual's maximiser guesses its saturated samples (windowed LPs, not one over every sample)
+    except BangOffBangMissed as exc:
+        # e.g. a singular arc (|B^T lambda| = 1 on an interval): the LP optimum stays exact, and
+        # the best dual iterate guesses its saturated samples (windowed LPs, not one over every sample)
         continuous, nu = None, exc.costate
         info["continuous_note"] = f"no continuous bang-off-bang profile: {exc}"
     except SolverError as exc:
