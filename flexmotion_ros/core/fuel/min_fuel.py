@@ -174,7 +174,7 @@ class FuelProfile:
 #: the samples.  Fuzz case 39 (a 457 s move, a 26 rad/s mode): 16 samples per half period asked
 #: for 61,000 samples (9 s of HiGHS, twice) where Newton then took 58 ms; at 8,192 samples the LP
 #: takes 0.2 s and Newton 6 iterations, at 2,048 Newton missed (58 evaluations, 1.4 s).
-SEED_SAMPLES_PER_HALF_PERIOD = 4
+SEED_SAMPLES_PER_HALF_PERIOD = 16
 MAX_SEED_SAMPLES = 8192
 
 
@@ -320,7 +320,7 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
         # the dual's maximum reached while the miss stays: no bang-off-bang optimum (a singular
         # arc, |S| = 1 on an interval; fuzz case 191 spent 1,900 evaluations, 57 s, here).
         # The sampled LP is exact there; so is the work bound
-        if flat >= 4 or evaluations >= MAX_DUAL_EVALUATIONS:
+        if (flat >= 4 and stalled >= 4) or evaluations >= MAX_DUAL_EVALUATIONS:
             break
         Gc = system.expm_B(ev.crossings) / s
         _, dS = system.switching(nu, ev.crossings, derivative=True)
@@ -357,7 +357,7 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
     try:
         return _assemble(problem, system, nu, ev, T, it, t0)
     except SolverError as exc:
-        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4) from None
+        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4 and stalled >= 4) from None
 
 
 def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProfile:

@@ -134,3 +134,33 @@ def test_the_seed_lp_stays_small(monkeypatch):
     assert np.all(np.abs(prof.levels) <= CASE_39.u_max)
     err = np.abs(x[:n] - CASE_39.model.rest_state(CASE_39.target))
     assert np.max(err / np.maximum(peak, 1e-300)) <= 1e-7
+
+
+def test_the_exact_arrival_correction_falls_back_to_every_inner_sample():
+    """The LP optimum's fractional samples alone made an ill-conditioned correction (4e-3 missed).
+
+    Fuzz case 363 (a damped rigid body, three modes, a 79 s move at 100 Hz): the least-norm change
+    of the few fractional samples left the bound and was clipped away; every sample strictly inside
+    the bound now moves when that misses.
+    """
+    problem = MoveProblem(
+        ModalModel(
+            b0=0.1498373836355894,
+            c=-0.8758198996261823,
+            omega=(0.4779453975768604, 3.7023039881829414, 6.0633531823690126),
+            zeta=(0.0177256669349635, 0.04964871150950839, 0.1329047875898608),
+            b=(1.095954844947544, -1.9012153757912378, -0.1632015140998304),
+        ),
+        0.7421935207680813,
+        [0.0] * 8,
+        7.922660418721213,
+    )
+    move = prepare(problem)
+    T = 1.2 * plan_time_optimal(move).duration
+    K, dt = math.ceil(T * 100.0), 0.01
+    sol = min_fuel_lp(move.response, move.x0, problem.u_max, K, dt)
+    assert sol is not None and np.max(np.abs(sol.u)) <= problem.u_max
+    x = _final_state_by_expm(problem, sol.u[::-1], dt)
+    target = problem.model.rest_state(problem.target)
+    assert np.max(np.abs(x - target)[:2]) <= 1e-9 * abs(problem.target)
+    assert np.max(np.abs(x - target)[2:]) <= 1e-9
