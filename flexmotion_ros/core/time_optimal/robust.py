@@ -309,13 +309,18 @@ class RobustModalResponse:
         rig = self.rigid.switching(nu[: self.r], tau, order=K)
         rig = [rig] if K == 0 else list(rig)
         if self.N:
+            # Re(sum_i E_i sum_p c_pi tau^p) = sum_p tau^p (Re E @ Re c_p - Im E @ Im c_p): one matrix
+            # product per derivative instead of complex element-wise polynomials over (tau, modes),
+            # which were most of a long robust plan (fuzz case 73: 16 ms per call)
             E = self._E(tau)
+            Er, Ei = np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag)
             for m in range(K + 1):
-                c = self._coeffs(nu, m)
-                poly = np.zeros_like(E)
-                for p in range(self.order, -1, -1):
-                    poly = poly * tau[:, None] + c[p]
-                rig[m] = rig[m] + np.sum((E * poly).real, axis=1)
+                c = self._coeffs(nu, m)  # (order+1, N)
+                acc = Er @ np.ascontiguousarray(c.real.T) - Ei @ np.ascontiguousarray(c.imag.T)  # (len(tau), order+1)
+                val = acc[:, self.order].copy()
+                for p in range(self.order - 1, -1, -1):
+                    val = val * tau + acc[:, p]
+                rig[m] = rig[m] + val
         return rig[0] if K == 0 else tuple(rig)
 
     def _poly_bound(self, nu: np.ndarray, m: int, H: float) -> float:
