@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,11 +32,15 @@ from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..sampled.check import verified_samples
-from ..sampled.lp_tools import correct_arrival, lp_state_scale, sample_vectors
+from ..sampled.lp_tools import correct_arrival, sample_vectors
+from ..simulation.error_scale import state_scale
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import HIGHS_OPTIONS, LP_GAP_RTOL, MAX_SAMPLES, T_STAR_RTOL
+
+#: Sample counts tried above an infeasible requested one when the fewest feasible is not known.
+MAX_EXTRA_COUNTS = 16
 
 
 def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
@@ -109,7 +114,11 @@ def min_fuel_lp(
     """
     G = sample_vectors(system, K, dt)
     w = -system.expm_x(K * dt, x0)
-    scale = lp_state_scale(system, x0, um, K * dt)
+    # LP units: the move's error scale (uniform and geometric instants).  The 33 uniform
+    # instants of ``lp_state_scale`` missed a fast, damped mode on a long move (fuzz case 191:
+    # 1.8e-24 for a 39 rad/s mode's rate, entries of 1e22): HiGHS answered "model error" at
+    # every sample count and the planner refused after 400 LPs (23 s)
+    scale = state_scale(system, x0, um, K * dt)
     result = None
     if nu_guess is not None:
         levels = _levels_from(G, nu_guess, dt)
@@ -128,11 +137,22 @@ def min_fuel_lp(
         if result is None:
             return None
     # exact arrival: move samples strictly inside the bound (fractional ones first: fuel unchanged to rounding)
-    u = result.u
-    inner = np.abs(u) < um * (1.0 - 1e-9)
-    frac = inner & (np.abs(u) > um * 1e-9)
-    u = correct_arrival(G / scale, w / scale, u, frac if frac.sum() >= G.shape[1] else inner)
-    u = np.clip(u, -um, um)
+    u0 = result.u
+    inner = np.abs(u0) < um * (1.0 - 1e-9)
+    frac = inner & (np.abs(u0) > um * 1e-9)
+    Gs, ws = G / scale, w / scale
+    best = None
+    # the fractional samples alone (about one per state) can make an ill-conditioned system whose
+    # least-norm change leaves the bound and is clipped away (fuzz case 363: 4e-3 of the scale
+    # missed): then every sample strictly inside the bound moves (zeros too: fuel changes by rounding)
+    for movable in (frac, inner) if frac.sum() >= G.shape[1] else (inner,):
+        u = np.clip(correct_arrival(Gs, ws, u0, movable), -um, um)
+        miss = float(np.max(np.abs(Gs.T @ u - ws)))
+        if best is None or miss < best[0]:
+            best = (miss, u)
+        if miss <= 1e-12:
+            break
+    u = best[1]
     result.u = u
     result.fuel = fuel_of_samples(u, dt)
     return result
@@ -145,6 +165,7 @@ def plan_min_fuel_zoh(
     time_optimal: BangBangProfile | None = None,
     nu_guess: np.ndarray | None = None,
     continuous=None,
+    fewest_samples: Callable[[], int] | None = None,
 ) -> SampledProfile:
     """Minimum-fuel zero-order-hold sequence at ``rate_hz`` arriving at rest after ``ceil(move_time * rate_hz)`` samples.
 
@@ -152,6 +173,10 @@ def plan_min_fuel_zoh(
     ``move_time`` within one sample of ``T*``), the fewest feasible count is used.
     ``problem`` may be a :class:`PreparedMove` (its responses are reused);
     ``rate_hz`` (Hz, ``> 0``) is checked here: a public entry point.
+
+    ``fewest_samples``: a callable giving the sampled time-optimum's fewest samples
+    (:func:`~flexmotion_ros.core.sampled.zoh.plan_time_optimal_zoh`), asked for only if the
+    requested count is infeasible; without it, :data:`MAX_EXTRA_COUNTS` counts up are tried.
 
     Returns
     -------
@@ -180,12 +205,19 @@ def plan_min_fuel_zoh(
             "rate_hz", f"a {T:.3g} s move at {rate:g} Hz needs over {MAX_SAMPLES:g} samples; lower the rate"
         )
     K_lo = max(1, math.ceil(time_optimal.duration / dt * (1.0 - 1e-12)))
-    sol = None
-    K_stop = max(K, K_lo) + 400
-    while sol is None and K <= K_stop:
-        sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
-        if sol is None:
-            K += 1  # within a sample or so of T*: the ZOH needs a few more samples
+    sol = min_fuel_lp(system, x0, um, K, dt, nu_guess)
+    if sol is None:
+        # within a sample or so of T*: the ZOH needs more samples.  With ``fewest_samples`` (the
+        # sampled time-optimum's proved fewest count) one more LP; without, a few counts up (this
+        # was one LP per count, up to 400)
+        counts = range(K + 1, K + 1 + MAX_EXTRA_COUNTS)
+        if fewest_samples is not None:
+            fewest = int(fewest_samples())
+            counts = sorted({max(K + 1, fewest), fewest + 1})
+        for count in counts:
+            sol = min_fuel_lp(system, x0, um, count, dt, nu_guess)
+            if sol is not None:
+                break
     if sol is None:
         raise SolverError("min_fuel: no feasible sampled sequence near the requested move time")
     cmds = sol.u[::-1].copy()

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import SolverError
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile
-from ..sampled.lp_tools import lp_state_scale
+from ..simulation.error_scale import state_scale
 from ..simulation.exact import PiecewiseConstant, simulate
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
@@ -169,21 +169,33 @@ class FuelProfile:
         }
 
 
-def _initial_costate(problem, system, x0, T, time_optimal) -> np.ndarray:
-    """``nu`` from a coarse sampled LP; near ``T*``, a scaled time-optimal co-state."""
+#: The coarse sampled LP that seeds Newton's co-state: samples per half period of the fastest mode,
+#: and at most this many.  The seed only saves Newton iterations; HiGHS's time grows faster than
+#: the samples.  Fuzz case 39 (a 457 s move, a 26 rad/s mode): 16 samples per half period asked
+#: for 61,000 samples (9 s of HiGHS, twice) where Newton then took 58 ms; at 8,192 samples the LP
+#: takes 0.2 s and Newton 6 iterations, at 2,048 Newton missed (58 evaluations, 1.4 s).
+SEED_SAMPLES_PER_HALF_PERIOD = 16
+MAX_SEED_SAMPLES = 8192
+
+
+def _initial_costates(problem, system, x0, T, time_optimal):
+    """Starting co-states ``nu`` for Newton, best first (a generator: each is computed when asked for).
+
+    1. the dual of a coarse sampled LP (at most :data:`MAX_SEED_SAMPLES` samples);
+    2. the time-optimal co-state, scaled so that the coasts around its switches (width
+       ``2 / (alpha |S'|)``) add up to ``T - T*`` (the right start for ``T`` near ``T*``, where
+       the coarse LP is infeasible).
+    """
     wmax = float(np.max(system.wd)) if system.wd.size else 0.0
-    N = max(256, math.ceil(T * wmax / math.pi * 16))
-    for _ in range(3):
-        sol = min_fuel_lp(system, x0, problem.u_max, N, T / N)
-        if sol is not None:
-            return sol.nu
-        N *= 4
-    # T within a fine sample of T*: coasts of width 2 / (alpha |S'|) around the time-optimal switches
+    N = min(MAX_SEED_SAMPLES, max(256, math.ceil(T * wmax / math.pi * SEED_SAMPLES_PER_HALF_PERIOD)))
+    sol = min_fuel_lp(system, x0, problem.u_max, N, T / N)
+    if sol is not None:
+        yield sol.nu
     nu = -np.asarray(time_optimal.certificate.costate_final, dtype=float)
     tau = T - np.asarray(time_optimal.switch_times)
     _, dS = system.switching(nu, tau, derivative=True)
     total = float(np.sum(2.0 / np.abs(dS))) if tau.size else time_optimal.duration
-    return nu * total / max(T - time_optimal.duration, 1e-12 * T)
+    yield nu * total / max(T - time_optimal.duration, 1e-12 * T)
 
 
 def _time_optimal_as_fuel(problem: MoveProblem, to: BangBangProfile, t0: float) -> FuelProfile:
@@ -249,17 +261,50 @@ def plan_min_fuel(
             return _newton(problem, system, x0, T, np.asarray(nu0, float), max_iter, t0)
         except SolverError:
             pass  # a start from another move time can land on the wrong structure: start afresh
-    return _newton(problem, system, x0, T, _initial_costate(problem, system, x0, T, time_optimal), max_iter, t0)
+    error: SolverError | None = None
+    for nu in _initial_costates(problem, system, x0, T, time_optimal):
+        try:
+            return _newton(problem, system, x0, T, nu, max_iter, t0)
+        except BangOffBangMissed as exc:
+            if exc.singular:  # the dual's maximum leaves a miss: no start does better
+                raise
+            error = exc  # a start that lands on another structure: the next start
+    raise error
+
+
+class BangOffBangMissed(SolverError):
+    """Newton found no bang-off-bang input that arrives: the final state is still missed.
+
+    ``singular``: Newton reached the dual's maximum with the miss left (``|S| = 1`` on an
+    interval, a singular arc: no start does better); otherwise its budget ran out.
+    ``costate``: the best dual iterate, a good guess of the sampled LP's saturated samples
+    (the windowed LP is accepted only when its duality gap over every sample closes).
+    """
+
+    def __init__(self, message: str, costate: np.ndarray, singular: bool) -> None:
+        why = "a singular arc, |B^T lambda| = 1 on an interval" if singular else "Newton's budget ran out"
+        super().__init__(f"{message} ({why})")
+        self.costate = np.asarray(costate, float)
+        self.singular = singular
+
+
+#: Most evaluations of the dual (each isolates the crossings of ``|S| = 1`` over ``[0, T]``) per
+#: Newton start, line searches included: converging starts took 6-25 on the fuzz cases.
+MAX_DUAL_EVALUATIONS = 40
+#: Most halvings of a Newton step.
+MAX_LINE_SEARCH = 30
 
 
 def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
     """Damped Newton ascent on the concave dual ``d(nu)``; the result is checked by :func:`_assemble`."""
     um = problem.u_max
     w = -system.expm_x(T, x0)
-    s = lp_state_scale(system, x0, um, T)
+    s = state_scale(system, x0, um, T)  # the move's error scale (see .lp: coarse units missed fast modes)
     ev = _dual_eval(system, nu, w, T, um)
     best = (float(np.max(np.abs(ev.grad / s))), nu, ev)
     stalled = 0
+    flat = 0  # iterations in a row that raised the dual value by rounding only
+    evaluations = 1
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (the count is returned after the loop)
         g = ev.grad / s
@@ -271,6 +316,11 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
             stalled += 1
         # converged (relative miss at rounding level), or rounding noise stops progress
         if gmax <= 1e-14 or (stalled >= 3 and best[0] <= 1e-10):
+            break
+        # the dual's maximum reached while the miss stays: no bang-off-bang optimum (a singular
+        # arc, |S| = 1 on an interval; fuzz case 191 spent 1,900 evaluations, 57 s, here).
+        # The sampled LP is exact there; so is the work bound
+        if (flat >= 4 and stalled >= 4) or evaluations >= MAX_DUAL_EVALUATIONS:
             break
         Gc = system.expm_B(ev.crossings) / s
         _, dS = system.switching(nu, ev.crossings, derivative=True)
@@ -290,19 +340,24 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
         slope = float(g @ step)
         t = 1.0
         improved = False
-        for _ in range(40):
+        for _ in range(MAX_LINE_SEARCH):
             cand = nu + t * step / s
             ev_c = _dual_eval(system, cand, w, T, um)
+            evaluations += 1
             if ev_c.value >= ev.value + 1e-4 * t * slope or np.max(np.abs(ev_c.grad / s)) < 0.5 * np.max(np.abs(g)):
                 improved = True
                 break
             t *= 0.5
         if not improved:
             break
+        flat = flat + 1 if ev_c.value - ev.value <= 1e-13 * max(abs(ev.value), 1e-300) else 0
         nu, ev = cand, ev_c
     if float(np.max(np.abs(ev.grad / s))) > best[0]:
         _, nu, ev = best
-    return _assemble(problem, system, nu, ev, T, it, t0)
+    try:
+        return _assemble(problem, system, nu, ev, T, it, t0)
+    except SolverError as exc:
+        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4 and stalled >= 4) from None
 
 
 def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProfile:

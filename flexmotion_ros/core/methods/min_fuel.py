@@ -10,9 +10,10 @@ from ..config import PlannerConfig
 from ..errors import ConfigError, SolverError
 from ..fuel.curve import fuel_time_curve, sampled_fuel_curve
 from ..fuel.lp import plan_min_fuel_zoh
-from ..fuel.min_fuel import FuelProfile, plan_min_fuel
+from ..fuel.min_fuel import BangOffBangMissed, FuelProfile, plan_min_fuel
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
+from ..sampled.zoh import plan_time_optimal_zoh
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from .common import SampledInput, float_option, planning_rate
@@ -53,11 +54,23 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
     try:
         continuous = plan_min_fuel(move, move_time, to)
         nu = None if continuous.extra.get("time_optimal") else continuous.costate
+    except BangOffBangMissed as exc:
+        # e.g. a singular arc (|B^T lambda| = 1 on an interval): the LP optimum stays exact, and
+        # the best dual iterate guesses its saturated samples (windowed LPs, not one over every sample)
+        continuous, nu = None, exc.costate
+        info["continuous_note"] = f"no continuous bang-off-bang profile: {exc}"
     except SolverError as exc:
-        # e.g. a singular arc (|B^T lambda| = 1 on an interval): the LP optimum stays exact
         continuous, nu = None, None
         info["continuous_note"] = f"no continuous bang-off-bang profile: {exc}"
-    sampled = plan_min_fuel_zoh(move, rate, move_time, to, nu_guess=nu, continuous=continuous)
+    sampled = plan_min_fuel_zoh(
+        move,
+        rate,
+        move_time,
+        to,
+        nu_guess=nu,
+        continuous=continuous,
+        fewest_samples=lambda: plan_time_optimal_zoh(move.with_continuous(to), rate).samples,
+    )
     info["sampled_fuel"] = sampled.extra["fuel"]
     info["sampled_fuel_lower_bound"] = sampled.extra["fuel_lower_bound"]
     if continuous is not None:

@@ -70,9 +70,17 @@ def shape(u: PiecewiseConstant, shaper: Shaper) -> PiecewiseConstant:
     breaks = breaks[keep]
     breaks[-1] = T
     mids = 0.5 * (breaks[:-1] + breaks[1:])
-    levels = np.zeros(mids.size)
-    for ti, ai in zip(shaper.times, shaper.amplitudes):
-        levels += ai * u(mids - ti)
+    # sum_i A_i u(t - t_i) as a sum of steps: u jumps by J_k at its breaks b_k, so the shaped
+    # command jumps by A_i J_k at t_i + b_k.  The running sum of the sorted steps (extended
+    # precision) replaces one evaluation of u per impulse at every piece: 6,561 impulses (an
+    # 8-mode ZVD) on 13,000 pieces were 0.6 s, now a sort.
+    jumps = np.diff(np.concatenate([[0.0], u.levels, [0.0]]))
+    at = (shaper.times[:, None] + u.breaks[None, :]).ravel()
+    weight = (np.asarray(shaper.amplitudes, float)[:, None] * jumps[None, :]).ravel()
+    order = np.argsort(at, kind="stable")
+    running = np.cumsum(weight[order].astype(np.longdouble))
+    count = np.searchsorted(at[order], mids, side="right")
+    levels = np.where(count > 0, running[np.maximum(count - 1, 0)], 0.0).astype(float)
     return PiecewiseConstant(breaks, levels)
 
 

@@ -110,6 +110,8 @@ class RobustModalResponse:
         self.wd = model.omega_d
         self.horizon = horizon
         self._A, self._B = self._matrices()
+        self._maps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._last_coeffs: dict[tuple[int, bytes], np.ndarray] = {}
 
     # ------------------------------------------------------------ structure
     def q_index(self, mode: int, j: int) -> int:
@@ -259,21 +261,42 @@ class RobustModalResponse:
         return self._A @ np.asarray(x, dtype=float)
 
     # --------------------------------------------------- switching function
-    def _coeffs(self, nu: np.ndarray, m: int) -> np.ndarray:
-        """Coefficients ``c_p`` (shape ``(order+1, N)``) with ``S_modes^(m)(tau) = Re(sum_i e^{mu w tau} sum_p c_p tau^p)``."""
+    def _coeff_maps(self, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(Cq, Cqd)``, each ``(order+1, order+1, N)``: ``c_p = sum_j Cq[p, j] nu_q[j] + Cqd[p, j] nu_qd[j]``.
+
+        ``nu_q[j]`` / ``nu_qd[j]``: the co-state entries of ``d^j q / domega^j`` and its rate.
+        Built once per derivative order ``m`` (the maps do not depend on ``nu``; the switching
+        function is evaluated thousands of times per solve with the same maps).
+        """
+        cached = self._maps.get(m)
+        if cached is not None:
+            return cached
         k = self.order
-        coef = np.zeros((k + 1, self.N), dtype=complex)
+        Cq = np.zeros((k + 1, k + 1, self.N), dtype=complex)
+        Cqd = np.zeros((k + 1, k + 1, self.N), dtype=complex)
+        aq = self.cq * self.mu**m  # times d^j(omega^(m-1) e)
+        aqd = self.cq * self.mu ** (m + 1)  # times d^j(omega^m e)
         for j in range(k + 1):
-            cols = self.r + np.arange(self.N) * self.block + 2 * j
-            aq = nu[cols] * self.cq * self.mu**m  # times d^j(omega^(m-1) e)
-            aqd = nu[cols + 1] * self.cq * self.mu ** (m + 1)  # times d^j(omega^m e)
             for l in range(j + 1):
                 p = j - l
-                coef[p] += (
-                    math.comb(j, l)
-                    * self.mu**p
-                    * (aq * _ff(m - 1, l) * self.w ** (m - 1 - l) + aqd * _ff(m, l) * self.w ** (m - l))
-                )
+                c = math.comb(j, l) * self.mu**p
+                Cq[p, j] += c * aq * _ff(m - 1, l) * self.w ** (m - 1 - l)
+                Cqd[p, j] += c * aqd * _ff(m, l) * self.w ** (m - l)
+        self._maps[m] = (Cq, Cqd)
+        return Cq, Cqd
+
+    def _coeffs(self, nu: np.ndarray, m: int) -> np.ndarray:
+        """Coefficients ``c_p`` (shape ``(order+1, N)``) with ``S_modes^(m)(tau) = Re(sum_i e^{mu w tau} sum_p c_p tau^p)``."""
+        key = (m, nu.tobytes())
+        hit = self._last_coeffs.get(key)
+        if hit is not None:  # root isolation asks for the same co-state block after block
+            return hit
+        Cq, Cqd = self._coeff_maps(m)
+        blocks = nu[self.r :].reshape(self.N, self.order + 1, 2)
+        coef = np.einsum("pji,ji->pi", Cq, blocks[:, :, 0].T) + np.einsum("pji,ji->pi", Cqd, blocks[:, :, 1].T)
+        if len(self._last_coeffs) >= 8:
+            self._last_coeffs.clear()
+        self._last_coeffs[key] = coef
         return coef
 
     def switching(self, nu, tau, derivative: bool = False, order: int | None = None):
@@ -286,13 +309,18 @@ class RobustModalResponse:
         rig = self.rigid.switching(nu[: self.r], tau, order=K)
         rig = [rig] if K == 0 else list(rig)
         if self.N:
+            # Re(sum_i E_i sum_p c_pi tau^p) = sum_p tau^p (Re E @ Re c_p - Im E @ Im c_p): one matrix
+            # product per derivative instead of complex element-wise polynomials over (tau, modes),
+            # which were most of a long robust plan (fuzz case 73: 16 ms per call)
             E = self._E(tau)
+            Er, Ei = np.ascontiguousarray(E.real), np.ascontiguousarray(E.imag)
             for m in range(K + 1):
-                c = self._coeffs(nu, m)
-                poly = np.zeros_like(E)
-                for p in range(self.order, -1, -1):
-                    poly = poly * tau[:, None] + c[p]
-                rig[m] = rig[m] + np.sum((E * poly).real, axis=1)
+                c = self._coeffs(nu, m)  # (order+1, N)
+                acc = Er @ np.ascontiguousarray(c.real.T) - Ei @ np.ascontiguousarray(c.imag.T)  # (len(tau), order+1)
+                val = acc[:, self.order].copy()
+                for p in range(self.order - 1, -1, -1):
+                    val = val * tau + acc[:, p]
+                rig[m] = rig[m] + val
         return rig[0] if K == 0 else tuple(rig)
 
     def _poly_bound(self, nu: np.ndarray, m: int, H: float) -> float:

@@ -277,3 +277,24 @@ def test_the_shaper_table_is_the_one_list_of_shapers_and_methods():
     for kind in SHAPER_TABLE:  # every row's unit sequence is a shaper: amplitudes sum to one, first impulse at 0
         t, a = kind.unit(0.0, 0.05, 0.75)
         assert t[0] == 0.0 and abs(float(np.sum(a)) - 1.0) < 1e-12, kind.name
+
+
+def test_shape_is_the_direct_convolution():
+    """``shape`` (a sorted running sum of steps) equals ``sum_i A_i u(t - t_i)`` evaluated directly."""
+    from flexmotion_ros.core.shaping.shaped_profile import shape
+    from flexmotion_ros.core.shaping.shapers import design
+    from flexmotion_ros.core.simulation.exact import PiecewiseConstant
+
+    rng = np.random.default_rng(15)
+    for name in ("zv", "zvd", "ei", "zvdd", "sna"):
+        for n in (1, 3):
+            w = tuple(np.sort(rng.uniform(0.3, 60.0, n)) * np.geomspace(1.0, 1.2, n))
+            shaper = design(name, w, tuple(rng.uniform(0.0, 0.3, n)), 0.05, 0.75, "convolve")
+            for D in (0.01, 1.0, 100.0):
+                breaks = np.sort(np.concatenate([[0.0, D], rng.uniform(0.0, D, 3)]))
+                u = PiecewiseConstant(breaks, rng.uniform(-2.0, 2.0, breaks.size - 1))
+                c = shape(u, shaper)
+                mids = 0.5 * (c.breaks[:-1] + c.breaks[1:])
+                direct = sum(a * u(mids - t) for t, a in zip(shaper.times, shaper.amplitudes))
+                assert np.max(np.abs(c.levels - direct)) <= 1e-12 * max(1.0, np.max(np.abs(direct)))
+                assert c.duration == u.duration + shaper.duration
