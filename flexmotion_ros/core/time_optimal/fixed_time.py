@@ -184,31 +184,44 @@ def _polish(
         contrib = (signs[:, None] * (G[:-1] - G[1:])).sum(axis=0)
         return (eAx + ub * contrib) / scale, contrib
 
-    z = np.concatenate([switch_times, [bound]])
+    def jacobian(z, contrib):
+        J = np.empty((contrib.size, L + 1))
+        if L:
+            J[:, :L] = (z[L] * (signs[:-1] - signs[1:])[:, None] * sys.expm_B(T - z[:L])).T / scale[:, None]
+        J[:, L] = contrib / scale
+        return J
+
+    z, r = _damped_newton(np.concatenate([switch_times, [bound]]), resid, jacobian, L, T, max_iter)
+    return z[:L], float(z[L]), float(np.max(np.abs(r)))
+
+
+def _damped_newton(z, resid, jacobian, L: int, T: float, max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton on ``z = (t_1..t_L, u', ...)`` with step halving; the last ``(z, residual)``.
+
+    A step is taken only if it keeps ``0 < t_1 < ... < t_L < T`` and ``u' > 0`` and lowers the largest
+    residual; it stops at rounding (``4 eps``), after ``max_iter`` steps or 20 halvings without progress.
+    ``resid(z)`` returns ``(residual, contrib)``, ``jacobian(z, contrib)`` the Jacobian there.
+    """
     r, contrib = resid(z)
     rn = float(np.max(np.abs(r)))
     for _ in range(max_iter):
         if rn <= 4.0 * np.finfo(float).eps:
             break
-        J = np.empty((r.size, L + 1))
-        if L:
-            J[:, :L] = (z[L] * (signs[:-1] - signs[1:])[:, None] * sys.expm_B(T - z[:L])).T / scale[:, None]
-        J[:, L] = contrib / scale
-        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
-        t = 1.0
+        step, *_ = np.linalg.lstsq(jacobian(z, contrib), -r, rcond=None)
+        h = 1.0
         for _ in range(20):
-            zc = z + t * step
-            ok = zc[L] > 0.0 and (L == 0 or (zc[0] > 0.0 and zc[L - 1] < T and np.all(np.diff(zc[:L]) > 0.0)))
-            if ok:
+            zc = z + h * step
+            tc = zc[:L]
+            if zc[L] > 0.0 and (L == 0 or (tc[0] > 0.0 and tc[-1] < T and np.all(np.diff(tc) > 0.0))):
                 rc, cc = resid(zc)
                 rcn = float(np.max(np.abs(rc)))
                 if rcn < rn:
                     break
-            t *= 0.5
+            h *= 0.5
         else:
             break
         z, r, contrib, rn = zc, rc, cc, rcn
-    return z[:L], float(z[L]), rn
+    return z, r
 
 
 #: Relative final-state residual at which a continuation step is accepted.  Newton on the
@@ -251,12 +264,7 @@ def _polish_with_costate(
         S = sys.switching(nus / scale, T - t)
         return np.concatenate([(eAx + ub * contrib) / scale, S, [nus @ ref - 1.0]]), contrib
 
-    z = np.concatenate([switch_times, [bound], ref])
-    r, contrib = resid(z)
-    rn = float(np.max(np.abs(r)))
-    for _ in range(30):
-        if rn <= 4.0 * np.finfo(float).eps:
-            break
+    def jacobian(z, contrib):
         t, ub, nus = z[:L], z[L], z[L + 1 :]
         J = np.zeros((n + L + 1, L + 1 + n))
         E = sys.expm_B(T - t) / scale  # rows: e^{A tau_j} B in scaled units
@@ -266,20 +274,9 @@ def _polish_with_costate(
         J[n : n + L, :L] = np.diag(-dS)
         J[n : n + L, L + 1 :] = E
         J[n + L, L + 1 :] = ref
-        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
-        h = 1.0
-        for _ in range(20):
-            zc = z + h * step
-            tc = zc[:L]
-            if zc[L] > 0.0 and (L == 0 or (tc[0] > 0.0 and tc[-1] < T and np.all(np.diff(tc) > 0.0))):
-                rc, cc = resid(zc)
-                rcn = float(np.max(np.abs(rc)))
-                if rcn < rn:
-                    break
-            h *= 0.5
-        else:
-            break
-        z, r, contrib, rn = zc, rc, cc, rcn
+        return J
+
+    z, r = _damped_newton(np.concatenate([switch_times, [bound], ref]), resid, jacobian, L, T, 30)
     return z[:L], float(z[L]), float(np.max(np.abs(r[:n])))
 
 
