@@ -202,13 +202,11 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
     row_hi = np.concatenate([b_ub if b_ub is not None else np.zeros(0), b_eq if b_eq is not None else np.zeros(0)])
     h = _solver()
     primal, dual = (DEFAULT_FEASIBILITY_TOL if tol is None else float(tol) for tol in tolerances)
-    options = (
-        method.value,
-        "on" if presolve else "off",
-        float(time_limit_s) if time_limit_s is not None else np.inf,
-        primal,
-        dual,
-    )
+    # HiGHS compares time_limit with the object's run clock, which adds up over every run of the object
+    # (measured: a 0.05 s limit refused every solve after 0.05 s of solves in total): the limit of this
+    # solve is the clock now plus its own share
+    limit = h.getRunTime() + float(time_limit_s) if time_limit_s is not None else np.inf
+    options = (method.value, "on" if presolve else "off", limit, primal, dual)
     if options != getattr(_local, "options", None):  # set only what changed since this thread's last call
         h.setOptionValue("solver", options[0])
         h.setOptionValue("presolve", options[1])
@@ -347,7 +345,8 @@ def solve_lp(
     method : LpMethod
         ``CHOOSE`` (``linprog(method="highs")``), ``DUAL_SIMPLEX`` (``"highs-ds"``), ``IPM``.
     presolve : bool
-        HiGHS's presolve.
+        HiGHS's presolve; if it leaves no verdict (``OTHER``), the LP is asked
+        once more without it.
     time_limit_s : float, optional
         Wall-time limit (s); reaching it gives ``TIME_LIMIT``.
     primal_feasibility_tolerance, dual_feasibility_tolerance : float, optional
@@ -376,7 +375,15 @@ def solve_lp(
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
-    return solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
+    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
+    if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
+        # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
+        # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
+        # no verdict with presolve asks once without it
+        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances)
+        if again.status is not LpStatus.OTHER:
+            return again
+    return res
 
 
 __all__ = [
