@@ -32,10 +32,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 from scipy.signal import lfilter
 from scipy.sparse import coo_matrix
 
+from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..sampled.lp_tools import least_norm_correction
 from ..tolerances import HIGHS_OPTIONS
@@ -45,7 +45,6 @@ from .contact import ClosedForm
 #: stall for minutes on a degenerate windowed LP; such an LP counts as "no solution" (wider windows,
 #: or another count, are tried), never as a verdict.
 LP_TIME_LIMIT_S = 1.0
-LP_OPTIONS = {**HIGHS_OPTIONS, "time_limit": LP_TIME_LIMIT_S}
 #: Rounds of sign-row generation in a windowed LP.
 SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
@@ -221,19 +220,21 @@ class FrictionLP:
         cost = np.zeros(nv)
         cost[imu] = -1.0
         self.solves += 1
-        res = linprog(
-            cost,
+        res = solve_lp(
+            cost=cost,
             A_ub=A_ub,
             b_ub=b_ub,
             A_eq=A_eq,
             b_eq=np.zeros(A_eq.shape[0]),
-            bounds=np.column_stack([lo, hi]),
-            method="highs-ds",
+            lower=lo,
+            upper=hi,
+            method=LpMethod.DUAL_SIMPLEX,
             # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep; the time limit grows
             # with the size (a fine structure LP of 2,000 samples takes about 1 s on a loaded machine)
-            options={**LP_OPTIONS, "time_limit": LP_TIME_LIMIT_S * (1.0 + K / 500.0)},
+            time_limit_s=LP_TIME_LIMIT_S * (1.0 + K / 500.0),
+            **HIGHS_OPTIONS,
         )
-        if res.status != 0 or res.x[imu] <= 0.0:
+        if res.status is not LpStatus.OPTIMAL or res.x[imu] <= 0.0:
             return None
         self.feasible_solves += 1
         t = 1.0 / float(res.x[imu])
@@ -265,7 +266,8 @@ class FrictionLP:
         want: set[int] = set(change.tolist())
         cost = np.zeros(nF + 1)
         cost[-1] = -1.0
-        bounds = np.array([(-1.0, 1.0)] * nF + [(0.0, MU_MAX)])
+        lower = np.append(np.full(nF, -1.0), 0.0)
+        upper = np.append(np.ones(nF), MU_MAX)
         A_ub = b_ub = None
         res = None
         for _ in range(SIGN_ROUNDS):
@@ -280,17 +282,19 @@ class FrictionLP:
                     rhs.append(sd * c[js])
                 A_ub, b_ub = np.vstack(blocks), np.concatenate(rhs)
             self.solves += 1
-            res = linprog(
-                cost,
+            res = solve_lp(
+                cost=cost,
                 A_ub=A_ub,
                 b_ub=b_ub,
                 A_eq=A_eq,
                 b_eq=b_eq,
-                bounds=bounds,
-                method="highs-ds",
-                options=LP_OPTIONS,
+                lower=lower,
+                upper=upper,
+                method=LpMethod.DUAL_SIMPLEX,
+                time_limit_s=LP_TIME_LIMIT_S,
+                **HIGHS_OPTIONS,
             )
-            if res.status != 0 or res.x[-1] <= 0.0:
+            if res.status is not LpStatus.OPTIMAL or res.x[-1] <= 0.0:
                 return None
             t = 1.0 / float(res.x[-1])
             u = sigma * t
