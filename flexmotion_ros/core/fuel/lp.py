@@ -25,9 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from ..errors import GoalError, SolverError
+from ..linear_program import LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
@@ -95,12 +95,12 @@ def _solve_fuel_lp(G, w, dt, um, scale, levels, free) -> _LPResult | None:
     rhs = w / scale - um * (Gs[fixed].T @ levels[fixed])
     # u_f = u_max (p - q), 0 <= p, q <= 1
     A_eq = um * np.hstack([Gs[F].T, -Gs[F].T])
-    res = linprog(np.ones(2 * nF), A_eq=A_eq, b_eq=rhs, bounds=(0.0, 1.0), method="highs", options=HIGHS_OPTIONS)
-    if res.status != 0:
+    res = solve_lp(cost=np.ones(2 * nF), A_eq=A_eq, b_eq=rhs, lower=0.0, upper=1.0, **HIGHS_OPTIONS)
+    if res.status is not LpStatus.OPTIMAL:
         return None
     u = um * levels.astype(float)
     u[F] = um * (res.x[:nF] - res.x[nF:])
-    nu = dt * um * np.asarray(res.eqlin.marginals, dtype=float) / scale  # d fuel / d w
+    nu = dt * um * np.asarray(res.eq_marginals, dtype=float) / scale  # d fuel / d w
     return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
 
 

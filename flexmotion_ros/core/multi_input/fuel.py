@@ -20,9 +20,9 @@ import math
 import time
 
 import numpy as np
-from scipy.optimize import linprog
 
 from ..errors import InputError, SolverError
+from ..linear_program import LpStatus, solve_lp
 from ..model.modal_model import check_positive
 from ..sampled.zoh import correct_exactly
 from ..tolerances import HIGHS_OPTIONS, LP_GAP_RTOL
@@ -68,24 +68,24 @@ def plan_multi_min_fuel_zoh(
     rows_U = np.repeat(U, K)
     cost = np.repeat(c * dt, K)
     # variables: u+ (mK), u- (mK), each in [0, U]
-    res = linprog(
-        np.concatenate([cost, cost]),
+    res = solve_lp(
+        cost=np.concatenate([cost, cost]),
         A_eq=np.hstack([G.T, -G.T]),
         b_eq=w,
-        bounds=np.column_stack([np.zeros(2 * m * K), np.concatenate([rows_U, rows_U])]),
-        method="highs",
-        options=HIGHS_OPTIONS,
+        lower=0.0,
+        upper=np.concatenate([rows_U, rows_U]),
+        **HIGHS_OPTIONS,
     )
-    if res.status == 2:
+    if res.status is LpStatus.INFEASIBLE:
         raise InputError(
             "move_time",
             f"{K} samples at {1 / dt:g} Hz ({K * dt:.6g} s) cannot reach rest within u_max; "
             "it must be at least the time-optimal move time",
         )
-    if res.status != 0:
+    if res.status is not LpStatus.OPTIMAL:
         raise SolverError(f"min_fuel: the linear program failed ({res.message})")
     u = res.x[: m * K] - res.x[m * K :]
-    nu = np.asarray(res.eqlin.marginals, float)
+    nu = np.asarray(res.eq_marginals, float)
     fixed = correct_exactly(G * rows_U[:, None], w, u / rows_U, 1.0)
     if fixed is None:
         raise SolverError("min_fuel: no exact correction of the LP sequence; nothing is returned")

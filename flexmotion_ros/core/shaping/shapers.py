@@ -47,9 +47,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linprog
 
 from ..errors import InputError, SolverError
+from ..linear_program import LpStatus, solve_lp
 from .numerical_shapers import ei_unit, impulse_vibration, negative_unit
 
 
@@ -396,8 +396,8 @@ def multi_mode_direct(omega, zeta, derivatives: int = 0, points_per_period: int 
 
     def feasible(K):
         t, M, rhs = constraints(K)
-        res = linprog(np.zeros(K + 1), A_eq=M, b_eq=rhs, bounds=[(0.0, None)] * (K + 1), method="highs")
-        return (t, res.x, M, rhs) if res.status == 0 else None
+        res = solve_lp(cost=np.zeros(K + 1), A_eq=M, b_eq=rhs, lower=0.0, upper=np.inf)
+        return (t, res.x, M, rhs) if res.status is LpStatus.OPTIMAL else None
 
     conv = float(np.sum(0.5 * (derivatives + 1) * 2.0 * np.pi / (w * s)))
     hi = math.ceil(conv / h) + 2
