@@ -98,6 +98,24 @@ class FrictionCertificate:
     message: str = "ok"
     status: FrictionStatus | None = None
 
+    @classmethod
+    def unproved(
+        cls, *, message: str, costate_final: np.ndarray, claim: str = CLAIM, status: FrictionStatus | None = None
+    ) -> FrictionCertificate:
+        """A certificate that proves nothing (every check failed or was not run), saying why in ``message``."""
+        return cls(
+            passed=False,
+            switch_residual=math.inf,
+            extra_zeros=0,
+            unproved_cells=0,
+            sign_consistent=False,
+            hamiltonian_max_abs=math.inf,
+            costate_final=costate_final,
+            claim=claim,
+            message=message,
+            status=status,
+        )
+
     def __post_init__(self) -> None:
         if self.status is None:
             status = FrictionStatus.EXTREMAL if self.passed else FrictionStatus.NOT_EXTREMAL
@@ -176,17 +194,7 @@ def certify_friction(ext: Extremal, y: np.ndarray) -> FrictionCertificate:
     Lams = ext.costates(run, lam)
     found, unproved, sig_max, _ = _zeros_detail(ext, y)
     if Lams is None or found is None:
-        return FrictionCertificate(
-            passed=False,
-            switch_residual=math.inf,
-            extra_zeros=0,
-            unproved_cells=0,
-            sign_consistent=False,
-            hamiltonian_max_abs=math.inf,
-            costate_final=lam,
-            claim=CLAIM,
-            message="the contact sticks during the move",
-        )
+        return FrictionCertificate.unproved(message="the contact sticks during the move", costate_final=lam)
     segs = run.segments
     extra = 0
     sign_ok = True

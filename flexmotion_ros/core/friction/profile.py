@@ -7,7 +7,6 @@ after it) and return nothing that fails it.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -159,13 +158,7 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
     u, xT, run, rel, dev = checked
     dt, K = lp.dt, sol.u.size
     T = K * dt
-    cert = FrictionCertificate(
-        passed=False,
-        switch_residual=math.inf,
-        extra_zeros=0,
-        unproved_cells=0,
-        sign_consistent=False,
-        hamiltonian_max_abs=math.inf,
+    cert = FrictionCertificate.unproved(
         costate_final=np.zeros(problem.model.n_states),
         message=(
             f"no extremal found: this is the fewest-sample move at {1.0 / dt:.4g} Hz for its velocity-sign "
@@ -174,7 +167,7 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
         status=FrictionStatus.SAMPLED,
         claim=SAMPLED_CLAIM,
     )
-    reversals = np.array([t for t, kind, _ in run.events if kind == "reversal" and t < T * (1.0 - 1e-12)])
+    reversals = reversal_times(run, T)
     return FrictionProfile(
         problem=problem,
         coulomb_force=lp.F,
@@ -213,7 +206,7 @@ def assemble_friction(
             f"{rel:.3e} (drift after arrival {drift:.3e}); nothing is returned"
         )
     cert = certify_friction(ext, y)
-    reversals = np.array([t for t, kind, _ in run.events if kind == "reversal" and t < T * (1.0 - 1e-12)])
+    reversals = reversal_times(run, T)
     return FrictionProfile(
         problem=problem,
         coulomb_force=ext.sys.F,
@@ -230,3 +223,8 @@ def assemble_friction(
         continuation_steps=steps,
         solve_time_s=time.perf_counter() - t0,
     )
+
+
+def reversal_times(run, T: float) -> np.ndarray:
+    """Times (s) of the velocity reversals of an event-located run, before the arrival at ``T``."""
+    return np.array([t for t, kind, _ in run.events if kind == "reversal" and t < T * (1.0 - 1e-12)])
