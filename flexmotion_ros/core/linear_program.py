@@ -214,7 +214,7 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
         h.setOptionValue("primal_feasibility_tolerance", primal)
         h.setOptionValue("dual_feasibility_tolerance", dual)
         _local.options = options
-    h.passModel(
+    passed = h.passModel(
         n,
         row_lo.size,
         value.size,
@@ -231,6 +231,19 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
         value,
         np.zeros(n, dtype=np.int32),  # every column continuous
     )
+    if passed == highspy.HighsStatus.kError:
+        # HiGHS refuses a model it cannot hold, e.g. a row whose bound lies past its infinity (1e20) on the
+        # wrong side; linprog reported such a model error as infeasible (status 2), and so does this
+        h.clearModel()
+        return LpSolution(
+            status=LpStatus.INFEASIBLE,
+            x=None,
+            objective=None,
+            eq_marginals=None,
+            ub_marginals=None,
+            message="HiGHS refused the model (a bound past its infinity, 1e20): read as infeasible, as linprog",
+            backend=LpBackend.HIGHSPY,
+        )
     h.run()
     model_status = h.getModelStatus()
     status = _STATUS.get(model_status, LpStatus.OTHER)

@@ -267,3 +267,13 @@ def test_a_time_limit_bounds_each_solve_not_the_solver_objects_lifetime():
     while time.perf_counter() - t0 < 100 * limit:  # the solves alone spend the limit many times over
         verdicts.append(solve_lp(**lp, time_limit_s=limit, backend=LpBackend.HIGHSPY).status)
     assert set(verdicts) == {LpStatus.OPTIMAL}, f"{verdicts.count(LpStatus.OPTIMAL)} of {len(verdicts)} optimal"
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_row_bound_past_highs_infinity_is_infeasible_as_linprog_says(backend):
+    # a limit row scaled by a state the rate cannot steer asked for x <= -1e30: HiGHS refuses such a model;
+    # linprog calls it infeasible (status 2), and the limited planner skips that rate on it
+    lp = dict(cost=np.ones(3), A_ub=np.array([[1.0, 0.0, 0.0]]), b_ub=np.array([-1e30]), lower=-1.0, upper=1.0)
+    assert linprog(lp["cost"], A_ub=lp["A_ub"], b_ub=lp["b_ub"], bounds=(-1.0, 1.0), method="highs").status == 2
+    res = solve_lp(**lp, backend=backend)
+    assert res.status is LpStatus.INFEASIBLE, res.message

@@ -72,8 +72,6 @@ MARGIN = 1e-7
 MAX_ROW_ROUNDS = 10
 #: Above this many free samples (with state chains) the interior-point method beats the simplex.
 IPM_SAMPLES = 300
-#: HiGHS reads a bound beyond this as infinite, and refuses a row whose bound is beyond it on the wrong side.
-HIGHS_INFINITY = 1e20
 #: The verdicts that decide a sample count; ``linprog``'s names of the methods, for messages.
 DECIDED = (LpStatus.OPTIMAL, LpStatus.INFEASIBLE)
 METHOD_NAMES = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
@@ -433,13 +431,6 @@ class LimitLP:
             cost[tvar] = 1.0
         A_eq, b_eq = E.system(nv)
         A_ub, b_ub = U.system(nv)
-        if (b_ub.size and np.min(b_ub) <= -HIGHS_INFINITY) or (b_eq.size and np.max(np.abs(b_eq)) >= HIGHS_INFINITY):
-            # a row scaled by a state this rate cannot steer (omega dt near a multiple of 2 pi) asks for more
-            # than HiGHS's infinity: HiGHS refuses the model, and linprog called that "infeasible" too; a proof
-            # resting on it is confirmed by the independent formulation (:mod:`.certify`)
-            self.infeasible_verdicts += 1
-            self.infeasible_method = "a limit row past HiGHS's infinity (1e20)"
-            return None
         method = LpMethod.IPM if F.size > IPM_SAMPLES and self.blocks else LpMethod.CHOOSE
         limit = max(0.5, self.deadline - time.perf_counter()) if math.isfinite(self.deadline) else None
         # the planner's budget bounds every single LP too
