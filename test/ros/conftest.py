@@ -229,7 +229,11 @@ class Ros:
 
     def _spin(self, executor: SingleThreadedExecutor) -> None:
         try:
-            executor.spin()
+            # not executor.spin(): seen twice in CI (5d05544, 67806ce), close()'s executor.shutdown did not wake
+            # a spin blocked in its wait set, and the thread outlived the join; a bounded wait ends the loop
+            # within 0.1 s of close() whatever the executor's guard condition does
+            while not self._closing and self.context.ok():
+                executor.spin_once(timeout_sec=0.1)
         except Exception:  # noqa: BLE001 -- the node went deaf: reported by wait_for and at teardown
             if not self._closing:  # not the shutdown race of close() (the executor's guard condition goes first)
                 self.errors.append(traceback.format_exc())
