@@ -33,8 +33,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from .heap import release_free_heap
+
 #: Plan-only queries that may wait; more are refused at once (a bounded queue: flat memory under a storm).
 MAX_QUERIES = 16
+#: The worker hands freed heap memory back to the system when idle, at most this often (s): ~5 ms a time.
+RELEASE_PERIOD_S = 30.0
 
 
 class RequestKind(enum.Enum):
@@ -109,6 +113,9 @@ class RequestWorker:
         self.superseded = 0
         #: Goals cancelled (waiting or being planned) by a stop or a deactivation.
         self.cancelled = 0
+        #: Times the worker handed freed heap memory back to the system (when idle, every RELEASE_PERIOD_S).
+        self.releases = 0
+        self._released = time.monotonic()
 
     # ----------------------------------------------------------------- control
     def start(self) -> None:
@@ -203,7 +210,13 @@ class RequestWorker:
                 outcome = self._refused(req, f"{type(exc).__name__}: {exc}")
             with self._cond:
                 self._current = None
+                idle = self._goal is None and not self._queries
             req.reply(outcome)
+            now = time.monotonic()
+            if idle and now - self._released >= RELEASE_PERIOD_S:  # flat RSS over a long run (execution.heap)
+                self._released = now
+                self.releases += 1
+                release_free_heap()
 
 
-__all__ = ["MAX_QUERIES", "Request", "RequestKind", "RequestWorker"]
+__all__ = ["MAX_QUERIES", "RELEASE_PERIOD_S", "Request", "RequestKind", "RequestWorker"]

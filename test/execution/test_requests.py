@@ -121,3 +121,39 @@ def test_stop_answers_everything_waiting_and_ends_the_thread():
     assert rec.answers["goal"] == ("refused", "shutting down")
     worker.submit(rec.request(RequestKind.GOAL, 4.0, "late"))
     assert rec.answers["late"][0] == "refused"
+
+
+def test_the_idle_worker_hands_freed_heap_back_at_most_once_a_period(monkeypatch):
+    # issue 16 (8): RSS crept ~0.7 MB per 1,000 storm requests with no object growing: glibc kept freed memory
+    from flexmotion_ros.execution import requests
+
+    monkeypatch.setattr(requests, "RELEASE_PERIOD_S", 0.0)
+    rec = Recorder()
+    rec.release.set()
+    worker = RequestWorker(rec.handle, rec.refused)
+    worker.start()
+    try:
+        worker.submit(rec.request(RequestKind.GOAL, 1.0, "g1"))
+        wait(lambda: worker.releases == 1)  # idle after g1: released once
+        monkeypatch.setattr(requests, "RELEASE_PERIOD_S", 3600.0)
+        worker.submit(rec.request(RequestKind.GOAL, 2.0, "g2"))
+        wait(lambda: len(rec.answers) == 2)
+        time.sleep(0.05)
+    finally:
+        worker.stop()
+    assert worker.releases == 1  # not again within the period
+
+
+def test_release_free_heap_returns_freed_memory_to_the_system():
+    import ctypes.util
+
+    import numpy as np
+    import pytest
+
+    from flexmotion_ros.execution.heap import release_free_heap
+
+    if "libc.so" not in (ctypes.util.find_library("c") or ""):
+        pytest.skip("not glibc: nothing to trim")
+    arrays = [np.ones(n) for n in np.random.default_rng(0).integers(100, 20_000, 2000)]
+    del arrays[::2]  # holes in the heap that glibc keeps for reuse
+    assert release_free_heap()
