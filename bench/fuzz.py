@@ -335,6 +335,7 @@ def main() -> None:
         "--clock", choices=("wall", "cpu"), default="wall", help="time each case by wall clock or process CPU time"
     )
     ap.add_argument("--modes-at-most", type=int, default=None, help="run only the cases with at most this many modes")
+    ap.add_argument("--modes-at-least", type=int, default=None, help="run only the cases with at least this many modes")
     args = ap.parse_args()
     methods = list(METHODS) if args.methods == "all" else [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
@@ -360,6 +361,8 @@ def main() -> None:
         for i in indices:
             case = draw_case(args.seed, i, args.max_modes)
             if args.modes_at_most is not None and case.model.n_modes > args.modes_at_most:
+                continue
+            if args.modes_at_least is not None and case.model.n_modes < args.modes_at_least:
                 continue
             tally.add(run_case(method, case, args.rate, args.timeout), case)
         report(method, tally, args.show)
