@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..simulation.error_scale import state_scale  # re-exported: the error scale lives with the simulation
-from .switching import MIN_GRID_POINTS, POINTS_PER_HALF_PERIOD, find_roots, sample_grid
+from .switching import MIN_GRID_POINTS, POINTS_PER_HALF_PERIOD, find_roots, root_grid, sample_grid
 
 
 @dataclass
@@ -59,7 +59,7 @@ class Shooting:
         self.evaluations += 1
         sys, s, um = self.sys, self.s, self.u_max
         nu = nuh / s
-        roots, sign0 = find_roots(sys, nu, T, sample_grid(sys, T))
+        roots, sign0 = find_roots(sys, nu, T, root_grid(sys, T))
         L = roots.size
         signs = sign0 * (1.0 - 2.0 * (np.arange(L + 1) % 2))
         G = sys.input_integral(np.append(roots, T))
