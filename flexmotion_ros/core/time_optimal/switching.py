@@ -113,14 +113,17 @@ def root_grid(system, T: float, density: float = 1.0) -> np.ndarray:
     :func:`sample_grid` is (the switching function's basis is cached by the
     grid's identity).
     """
-    uniform = sample_grid(system, T, density)
     sig, wd = getattr(system, "sig", None), getattr(system, "wd", None)
-    if not GRADED_ROOT_GRID or sig is None or wd is None or not np.size(wd) or uniform.size < 4 * MIN_GRID_POINTS:
-        return uniform
+    if not GRADED_ROOT_GRID or sig is None or wd is None or not np.size(wd):
+        return sample_grid(system, T, density)
     memo = getattr(system, "_grid_memo", None)
     key = (float(T), float(density), "graded")
     if memo is not None and key in memo:
         return memo[key]
+    uniform = sample_grid(system, T, density)
+    if uniform.size < 4 * MIN_GRID_POINTS:
+        return uniform
+    memo = getattr(system, "_grid_memo", None)  # (created by sample_grid on first use)
     grid = _graded(np.asarray(sig, float), np.asarray(wd, float), T, density)
     if grid is None or not grid.size < GRADED_SHARE * uniform.size:
         grid = uniform
