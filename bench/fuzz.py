@@ -21,9 +21,10 @@ state compared with the target's rest state relative to the trajectory's own
 excursion (per state), and ``|u| <= u_max`` checked.  A plan whose check
 fails is counted as ``check failed`` (a wrong answer, worse than a crash).
 
-Each case runs under a wall-clock guard (``signal.setitimer``; no
-subprocess): past ``--timeout`` seconds it is interrupted at the next Python
-bytecode and counted as a hang (a long call inside HiGHS is only interrupted
+Each case runs under a guard (``signal.setitimer``; no subprocess; on the
+wall clock, or with ``--clock cpu`` on the process's user CPU time, so that
+a hang does not depend on the machine's load): past ``--timeout`` seconds it
+is interrupted at the next Python bytecode and counted as a hang (a long call inside HiGHS is only interrupted
 when it returns: the time recorded is then the real one).
 
 Usage::
@@ -66,6 +67,8 @@ from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
 #: The clock of a case's time: wall (``time.perf_counter``) or, with ``--clock cpu``, this
 #: process's CPU time (``time.process_time``: far less sensitive to other jobs on a shared machine).
 CLOCK = [time.perf_counter]
+#: The per-case guard's timer: wall clock, or (``--clock cpu``) this process's user CPU time.
+TIMER = [signal.ITIMER_REAL]
 #: Independent check: final state within this of the target, relative to each state's excursion.
 CHECK_RTOL = 1e-8
 #: Longest command sequence checked sample by sample (longer ones: every 10th sample's state is skipped).
@@ -233,7 +236,7 @@ def reason_key(text: str) -> str:
 def run_case(method: str, case: Case, rate: float | None, timeout: float) -> Outcome:
     problem = case.problem()
     config = PlannerConfig(model=case.model, u_max=case.u_max, method=method, options=options_for(method, case))
-    signal.setitimer(signal.ITIMER_REAL, timeout)
+    signal.setitimer(TIMER[0], timeout)
     t0 = CLOCK[0]()
     try:
         result = plan_move(config, problem, rate)
@@ -249,7 +252,7 @@ def run_case(method: str, case: Case, rate: float | None, timeout: float) -> Out
         tb = traceback.extract_tb(exc.__traceback__)[-1]
         return Outcome("crash", dt, f"{type(exc).__name__} at {os.path.basename(tb.filename)}:{tb.lineno}: {exc}"[:160])
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.setitimer(TIMER[0], 0.0)
     bad = check_plan(problem, result)
     if bad:
         return Outcome("check failed", dt, bad)
@@ -326,7 +329,9 @@ def main() -> None:
     ap.add_argument("--methods", default="time_optimal", help="comma-separated; 'all' for every method")
     ap.add_argument("--seed", type=int, default=15)
     ap.add_argument("--rate", type=float, default=None, help="Hz; none: continuous plans only (where possible)")
-    ap.add_argument("--timeout", type=float, default=30.0, help="per-case wall-clock guard (s)")
+    ap.add_argument(
+        "--timeout", type=float, default=30.0, help="per-case guard (s): wall clock, or CPU time with --clock cpu"
+    )
     ap.add_argument("--max-modes", type=int, default=8)
     ap.add_argument("--first", type=int, default=0, help="index of the first case")
     ap.add_argument("--only", default=None, help="run case I only (or a comma-separated list: I,J,K)")
@@ -335,14 +340,19 @@ def main() -> None:
         "--clock", choices=("wall", "cpu"), default="wall", help="time each case by wall clock or process CPU time"
     )
     ap.add_argument("--modes-at-most", type=int, default=None, help="run only the cases with at most this many modes")
+    ap.add_argument("--modes-at-least", type=int, default=None, help="run only the cases with at least this many modes")
     args = ap.parse_args()
     methods = list(METHODS) if args.methods == "all" else [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
         if m not in METHODS:
             raise SystemExit(f"--methods: unknown method {m!r}; one of {sorted(METHODS)}")
     signal.signal(signal.SIGALRM, _alarm)
+    signal.signal(signal.SIGVTALRM, _alarm)
     if args.clock == "cpu":
         CLOCK[0] = time.process_time
+        TIMER[0] = (
+            signal.ITIMER_VIRTUAL
+        )  # the guard on this process's CPU time too: hangs then do not depend on the load
     if args.only is not None:
         indices = [int(i) for i in args.only.split(",") if i.strip()]
     else:
@@ -360,6 +370,8 @@ def main() -> None:
         for i in indices:
             case = draw_case(args.seed, i, args.max_modes)
             if args.modes_at_most is not None and case.model.n_modes > args.modes_at_most:
+                continue
+            if args.modes_at_least is not None and case.model.n_modes < args.modes_at_least:
                 continue
             tally.add(run_case(method, case, args.rate, args.timeout), case)
         report(method, tally, args.show)

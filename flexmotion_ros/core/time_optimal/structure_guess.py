@@ -31,7 +31,7 @@ import numpy as np
 
 from .reachable_set import Shooting
 from .switch_newton import refine_switches, updated_structure
-from .switching import examined_points, sample_grid
+from .switching import examined_points, root_grid, sample_grid
 
 #: Newton runs (first structure + edits) before the fast path gives up.
 MAX_TRIES = 4
@@ -43,6 +43,8 @@ SAME_RTOL = 1e-3
 MERGE_RTOL = 1e-3
 #: Sampling density of the structure guess (times the planners' grid).
 GRID_DENSITY = 4.0
+#: Guess on :func:`~.switching.root_grid` (graded by the modes still ringing; False: the uniform grid).
+GRADED_GUESS = True
 #: A local minimum of ``|S|`` below this fraction of its maximum is a near-zero.
 NEAR_ZERO = 1e-2
 #: ... and below this, one even if the switches are not too few.
@@ -165,8 +167,9 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
     sign0 : float
         Sign of ``S`` before the first of them.
     """
-    grid = sample_grid(sh.sys, T, density=GRID_DENSITY)
-    h = grid[1] - grid[0]
+    # graded by the modes still ringing (a guess: the certificate proves whatever comes of it)
+    grid = root_grid(sh.sys, T, density=GRID_DENSITY) if GRADED_GUESS else sample_grid(sh.sys, T, density=GRID_DENSITY)
+    h = grid[1] - grid[0]  # the finest spacing (a graded grid's first stretch): the width of added pairs
     nu = nuh / sh.s
     # where the rigid part dominates the modes by a margin, S neither changes
     # sign nor nearly touches zero: those blocks need no sampling

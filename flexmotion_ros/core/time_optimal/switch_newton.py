@@ -15,7 +15,7 @@ import numpy as np
 
 from ..tolerances import GAP_RTOL, POLISH_TOL
 from .reachable_set import Shooting
-from .switching import find_roots, root_tolerance, sample_grid
+from .switching import find_roots, root_grid, root_tolerance
 
 #: Switch-structure corrections tried before giving up.
 MAX_STRUCTURE_UPDATES = 5
@@ -170,7 +170,7 @@ def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0:
     switching function changes sign exactly at its switches), or None.
     """
     if roots is None:
-        roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, sample_grid(sh.sys, T))
+        roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, root_grid(sh.sys, T))
     nuh_r, T_r = nuh, T
     for _ in range(MAX_STRUCTURE_UPDATES):
         ok, roots_r, nuh_r, T_r, r = refine_switches(sh, roots, sign0, nuh_r, T_r)
@@ -178,7 +178,7 @@ def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0:
             return None
         # an extremal switches exactly where S changes sign; if S changes sign
         # elsewhere too, the structure was wrong: adopt S's zeros and refine again
-        iso_roots, iso_sign0 = find_roots(sh.sys, nuh_r / sh.s, T_r, sample_grid(sh.sys, T_r))
+        iso_roots, iso_sign0 = find_roots(sh.sys, nuh_r / sh.s, T_r, root_grid(sh.sys, T_r))
         if (
             iso_roots.size == roots_r.size
             and iso_sign0 == sign0
