@@ -1,0 +1,69 @@
+"""Methods other than time_optimal on the fuzz cases of issue 15: a plan or a physical refusal, never a solver's.
+
+Cases are ``bench/fuzz.py`` seed 15 at 100 Hz.  Every plan is checked here by an
+independent propagation (``scipy.linalg.expm`` of the augmented matrix), not the
+package's simulation.
+"""
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from flexmotion_ros.core import ModalModel
+from flexmotion_ros.core.config import PlannerConfig
+from flexmotion_ros.core.errors import SolverError
+from flexmotion_ros.core.methods import shaped
+from flexmotion_ros.core.methods.table import plan_move
+from flexmotion_ros.core.model.boundary import MoveProblem
+from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
+
+RATE = 100.0
+# a 3-mode beam-like model at rest, a 1-unit move
+BEAM = MoveProblem(
+    ModalModel(b0=1.0, c=0.0, omega=(3.0, 9.0, 21.0), zeta=(0.02, 0.05, 0.1), b=(1.0, -0.7, 0.4)),
+    2.0,
+    [0.0] * 8,
+    1.0,
+)
+
+
+def final_state_by_expm(problem: MoveProblem, u: np.ndarray, dt: float) -> np.ndarray:
+    """State after the samples (forward order), one expm of the augmented matrix."""
+    A, B = problem.model.A(), problem.model.B()
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n], M[:n, n] = A, B
+    E = expm(M * dt)
+    x = np.asarray(problem.x0, float)
+    for uk in u:
+        x = E[:n, :n] @ x + E[:n, n] * uk
+    return x
+
+
+def assert_sampled_plan_exact(problem: MoveProblem, result) -> None:
+    s = result.sampled
+    assert s is not None and s.samples > 0
+    assert np.max(np.abs(s.commands)) <= problem.u_max * (1.0 + 1e-12)
+    xf = final_state_by_expm(problem, s.commands, s.dt)
+    target = np.zeros_like(xf)
+    target[0] = problem.target
+    excursion = np.max(np.abs(s.states - s.states[-1]), axis=0)
+    assert np.all(np.abs(xf - target) <= 1e-8 * np.maximum(excursion, 1e-300) + 1e-300)
+
+
+@pytest.mark.parametrize("method", ["zv", "ei"])
+def test_a_shaper_plans_when_the_time_optimal_planner_refuses(method, monkeypatch):
+    """Fuzz case 561 (8 modes): ``zv`` was refused with the time-optimal planner's work-budget
+    message, though a shaped move needs ``T*`` only for its figures; the rigid-body bound stands in."""
+
+    def refuse(move, *args, **kwargs):
+        raise SolverError("time-optimal planner did not converge within its work budget")
+
+    monkeypatch.setattr(shaped, "plan_time_optimal", refuse)
+    config = PlannerConfig(model=BEAM.model, u_max=BEAM.u_max, method=method, options={})
+    result = plan_move(config, BEAM, RATE)
+    assert_sampled_plan_exact(BEAM, result)
+    T_rigid = rigid_time(BEAM.model, BEAM.u_max, BEAM.shifted_initial(), BEAM.include_position)
+    assert result.info["time_optimal_duration"] == pytest.approx(T_rigid, rel=1e-12)
+    assert "rigid-body minimum time" in result.info["time_optimal_note"]
+    assert result.sampled.lower_bound_samples >= 1
