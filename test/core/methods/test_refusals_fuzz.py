@@ -12,10 +12,12 @@ from scipy.linalg import expm
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.config import PlannerConfig
 from flexmotion_ros.core.errors import SolverError
+from flexmotion_ros.core.methods import robust as robust_method
 from flexmotion_ros.core.methods import shaped
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.model.boundary import MoveProblem
 from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
+from flexmotion_ros.core.time_optimal.robust import RobustModalResponse
 
 RATE = 100.0
 # a 3-mode beam-like model at rest, a 1-unit move
@@ -67,3 +69,43 @@ def test_a_shaper_plans_when_the_time_optimal_planner_refuses(method, monkeypatc
     assert result.info["time_optimal_duration"] == pytest.approx(T_rigid, rel=1e-12)
     assert "rigid-body minimum time" in result.info["time_optimal_note"]
     assert result.sampled.lower_bound_samples >= 1
+
+
+def augmented_final_state(problem: MoveProblem, u: np.ndarray, dt: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Final augmented state (nominal and frequency derivatives) by expm, and its largest excursion per state."""
+    system = RobustModalResponse(problem.model, order, problem.include_position)
+    A, B = system.A(), system.B()
+    n = A.shape[0]
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n], M[:n, n] = A, B
+    E = expm(M * dt)
+    x = system.augment(problem.shifted_initial())
+    peak = np.abs(x)
+    for uk in u:
+        x = E[:n, :n] @ x + E[:n, n] * uk
+        peak = np.maximum(peak, np.abs(x))
+    return x, peak
+
+
+def test_robust_plans_sampled_when_the_continuous_robust_solver_finds_nothing(monkeypatch):
+    """Fuzz cases 216, 721, 937 (6-8 modes, 100 Hz): the continuous robust solver missed the target
+    ("relative augmented final-state error 1.0") and the method refused; at a rate the sampled robust
+    move comes from the linear programs alone, the robust constraints exact."""
+
+    def miss(*args, **kwargs):
+        raise SolverError("robust time-optimal planner missed the target: relative augmented final-state error 1")
+
+    monkeypatch.setattr(robust_method, "plan_robust_time_optimal", miss)
+    config = PlannerConfig(model=BEAM.model, u_max=BEAM.u_max, method="robust_time_optimal", options={})
+    result = plan_move(config, BEAM, RATE)
+    assert_sampled_plan_exact(BEAM, result)
+    s = result.sampled
+    xa, peak = augmented_final_state(BEAM, s.commands, s.dt, 1)
+    assert np.all(np.abs(xa) <= 1e-8 * np.maximum(peak, 1e-300) + 1e-300)
+    assert "no continuous robust move" in result.info["continuous_note"]
+    # the count: no fewer than the nominal time-optimum's, and proved fewest when the LPs prove it
+    assert s.samples * s.dt >= result.info["time_optimal_duration"]
+    assert s.lower_bound_samples <= s.samples
+    # without a rate there is nothing to fall back on: the refusal stays
+    with pytest.raises(SolverError, match="missed the target"):
+        plan_move(config, BEAM, None)
