@@ -11,7 +11,8 @@ from scipy.linalg import expm
 
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.config import PlannerConfig
-from flexmotion_ros.core.errors import SolverError
+from flexmotion_ros.core.errors import InputError, SolverError
+from flexmotion_ros.core.methods import fixed_time as fixed_time_method
 from flexmotion_ros.core.methods import robust as robust_method
 from flexmotion_ros.core.methods import shaped
 from flexmotion_ros.core.methods.table import plan_move
@@ -108,4 +109,30 @@ def test_robust_plans_sampled_when_the_continuous_robust_solver_finds_nothing(mo
     assert s.lower_bound_samples <= s.samples
     # without a rate there is nothing to fall back on: the refusal stays
     with pytest.raises(SolverError, match="missed the target"):
+        plan_move(config, BEAM, None)
+
+
+def test_fixed_time_plans_sampled_when_the_time_optimal_planner_refuses(monkeypatch):
+    """Fuzz case 775 (7 modes, moving start, 100 Hz): fixed_time was refused with the time-optimal
+    planner's work-budget message; at a rate the least-peak LP at the requested sample needs no ``T*``."""
+
+    def refuse(move, *args, **kwargs):
+        raise SolverError("time-optimal planner did not converge within its work budget")
+
+    monkeypatch.setattr(fixed_time_method, "plan_time_optimal", refuse)
+    T_rigid = rigid_time(BEAM.model, BEAM.u_max, BEAM.shifted_initial(), BEAM.include_position)
+    arrival = 3.0 * T_rigid + 2.0
+    config = PlannerConfig(model=BEAM.model, u_max=BEAM.u_max, method="fixed_time", options={"arrival_time": arrival})
+    result = plan_move(config, BEAM, RATE)
+    assert_sampled_plan_exact(BEAM, result)
+    assert result.sampled.samples == round(arrival * RATE)
+    assert "no continuous fixed-time move" in result.info["continuous_note"]
+    # an arrival the bound cannot make: refused naming arrival_time and the peak it would need
+    early = PlannerConfig(
+        model=BEAM.model, u_max=BEAM.u_max, method="fixed_time", options={"arrival_time": 1.05 * T_rigid}
+    )
+    with pytest.raises(InputError, match="arrival_time.*too early"):
+        plan_move(early, BEAM, RATE)
+    # without a rate there is nothing to fall back on: the refusal stays
+    with pytest.raises(SolverError, match="work budget"):
         plan_move(config, BEAM, None)
