@@ -13,7 +13,7 @@ from ..results import BangBangProfile, SampledProfile
 from ..simulation.error_scale import state_scale
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.robust import RobustModalResponse
-from ..tolerances import BOUND_RTOL, LP_RTOL, MAX_SAMPLES
+from ..tolerances import BOUND_RTOL, LP_RTOL
 from .check import AugmentedSystem, verified_samples
 from .lp_tools import sample_vectors
 from .zoh import dual_bound, search_samples, solve_peak_lp
@@ -23,6 +23,12 @@ MAX_EXTRA_SAMPLES = 200
 #: Without a continuous robust move: counts tried by doubling above the nominal ``ceil(T* / dt)``
 #: before the search gives up (2^12 times the first gap: far past any robust move of the budget).
 MAX_DOUBLINGS = 12
+#: Without a continuous robust move: the longest full least-peak LP (samples) of the bracket.  Its
+#: work grows with the samples (fuzz seed 15 case 775, 7 modes: 7-11 s CPU per LP at 89,000-179,000
+#: samples); past it the method refuses rather than run for minutes.
+MAX_BRACKET_SAMPLES = 30_000
+#: The bisection stops within this many samples; the windowed search walks the rest.
+BRACKET_RESOLUTION = 16
 
 
 def plan_robust_time_optimal_zoh(
@@ -130,7 +136,8 @@ def bracket_samples(
     Raises
     ------
     SolverError
-        No count within :data:`MAX_DOUBLINGS` doublings is feasible.
+        No count within :data:`MAX_DOUBLINGS` doublings, nor up to
+        :data:`MAX_BRACKET_SAMPLES` (the full LPs' work bound), is feasible.
     """
     proved = K_lo  # every count below is infeasible (the given bound)
     gap = max(K_lo, 16)
@@ -141,6 +148,13 @@ def bracket_samples(
 
     def probe(K: int) -> bool:
         nonlocal proved, G_all, scale, K_built
+        if K > MAX_BRACKET_SAMPLES:
+            raise SolverError(
+                f"robust time-optimal: the continuous robust solver found no move, and the sampled one needs "
+                f"{'at least' if K == K_lo else 'more than'} {K if K == K_lo else K - 1} samples at "
+                f"{1.0 / dt:g} Hz: longer than the {MAX_BRACKET_SAMPLES} samples searched without it; "
+                "nothing is returned"
+            )
         if K > K_built:  # units and sample vectors at the largest count yet (sliced below it)
             K_built = 2 * K
             scale = state_scale(system, xa0, u_max, K_built * dt)
@@ -163,24 +177,18 @@ def bracket_samples(
         if probe(trial):
             break
         lo = trial
-        trial = K_lo + gap
+        trial = min(K_lo + gap, max(MAX_BRACKET_SAMPLES, lo + 1))  # the cap itself is tried once
         gap *= 2
-        if trial > MAX_SAMPLES:
-            raise SolverError(
-                f"robust time-optimal: no sampled sequence of up to {lo} samples ({lo * dt:.4g} s) keeps the "
-                f"robust constraints within the bound, and more would pass the sample budget {MAX_SAMPLES:.0e}; "
-                "nothing is returned"
-            )
     else:
         raise SolverError(
             f"robust time-optimal: no sampled sequence of up to {lo} samples ({lo * dt:.4g} s) keeps the "
             "robust constraints within the bound; nothing is returned"
         )
     hi = trial
-    while hi - lo > 1:  # lo infeasible, hi feasible
+    while hi - lo > BRACKET_RESOLUTION:  # lo infeasible, hi feasible; the windowed search walks the rest
         mid = (lo + hi) // 2
         if probe(mid):
             hi = mid
         else:
             lo = mid
-    return min(proved, hi), hi, feasible[hi]
+    return proved, hi, feasible[hi]
