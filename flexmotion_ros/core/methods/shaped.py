@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 from ..config import PlannerConfig
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError, InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
 from ..shaping.sensitivity import (
@@ -44,6 +44,7 @@ from ..shaping.shaped_profile import plan_shaped, sample_command
 from ..shaping.shapers import SHAPERS, check_negative_amplitude, check_tolerance, design
 from ..simulation.exact import PiecewiseConstant
 from ..simulation.prepared import PreparedMove, prepare
+from ..time_optimal.rigid_body import rigid_time
 from ..time_optimal.robust import check_order
 from ..time_optimal.solver import plan_time_optimal
 
@@ -119,6 +120,23 @@ def _check_problem(method: str, problem: MoveProblem) -> None:
         raise ConfigError("method", f"{method} shapes vibration modes; the model has none (use time_optimal)")
 
 
+def _time_optimal_bound(move: PreparedMove) -> tuple[float, str]:
+    """The time-optimal duration ``T*`` (s), a proved lower bound for the shaped move, and a note.
+
+    A shaped move needs ``T*`` only for its figures (time added, the sampled
+    count's lower bound): when the time-optimal planner refuses the model
+    (e.g. its work budget on an 8-mode model), the rigid body's own minimum
+    time, also a proved lower bound, stands in and the note says so; the
+    shaped plan itself does not depend on it.
+    """
+    try:
+        return plan_time_optimal(move).duration, ""
+    except SolverError as exc:
+        problem = move.problem
+        T = rigid_time(problem.model, problem.u_max, move.x0, problem.include_position)
+        return T, f"time_optimal_duration is the rigid-body minimum time (time-optimal planner: {exc})"
+
+
 def _shaper_planner(name: str):
     def planner(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: float | None) -> PlanResult:
         move = prepare(problem)  # responses built once for every planner below
@@ -132,15 +150,15 @@ def _shaper_planner(name: str):
         )
         profile = plan_shaped(problem, shaper, name)
         plan_time = time.perf_counter() - t0
-        nominal = plan_time_optimal(move)
+        T_low, note = _time_optimal_bound(move)
         sampled = None
         if rate_hz:
-            lower = max(1, math.ceil(nominal.duration * rate_hz * (1.0 - 1e-12)))
+            lower = max(1, math.ceil(T_low * rate_hz * (1.0 - 1e-12)))
             sampled = sample_command(move, profile.command, rate_hz, name, profile, lower)
         info = {"plan_time_s": plan_time, "shaper_duration": shaper.duration, "rigid_level": profile.level}
-        info.update(
-            robustness_info(profile.command, problem, nominal.duration, o["robustness.tolerance"], profile.residual)
-        )
+        info.update(robustness_info(profile.command, problem, T_low, o["robustness.tolerance"], profile.residual))
+        if note:
+            info["time_optimal_note"] = note
         # the shaper's own figure (Singhose's), per mode: independent of the command
         info["shaper_insensitivity_width"] = [
             float(shaper_insensitivity(shaper, o["robustness.tolerance"], i).width) for i in range(len(shaper.omega))

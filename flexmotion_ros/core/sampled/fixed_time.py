@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
-from ..errors import SolverError
+from ..errors import InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..simulation.prepared import PreparedMove, prepare
-from ..time_optimal.fixed_time import plan_fixed_time
+from ..time_optimal.fixed_time import check_arrival_time, plan_fixed_time
+from ..time_optimal.rigid_body import rigid_time
 from ..time_optimal.solver import plan_time_optimal
+from ..tolerances import BOUND_RTOL, LP_RTOL
 from .lp_tools import sample_vectors
 from .zoh import (
     correct_exactly,
@@ -105,5 +108,64 @@ def plan_fixed_time_zoh(
     out.method = "fixed_time"
     out.extra.update(
         {"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)}
+    )
+    return out
+
+
+def plan_fixed_time_lp(problem: MoveProblem | PreparedMove, arrival_time: float, rate_hz: float) -> SampledProfile:
+    """Least-peak sequence arriving at rest at sample ``round(arrival_time * rate_hz)``, from the LP alone.
+
+    For when the continuous time-optimum ``T*`` is not available (its planner
+    refused the model): the full least-peak linear program at the requested
+    count (every sample free, no continuous guess), its exact correction and
+    the one exact sampled check.  ``arrival_time`` is checked against the rigid
+    body's minimum time (a proved lower bound on ``T*``); a count that cannot
+    reach rest within ``u_max`` is refused naming ``arrival_time`` and the
+    least peak it would need (proved by the LP's dual).
+
+    Raises
+    ------
+    InputError
+        ``arrival_time`` below the rigid-body bound, or too early for ``u_max`` at this rate.
+    SolverError
+        The LP failed, or no sequence passes the exact final-state check.
+    """
+    t0 = time.perf_counter()
+    rate = check_positive("rate_hz", rate_hz, "Hz")
+    dt = 1.0 / rate
+    move = prepare(problem)
+    problem = move.problem
+    um = problem.u_max
+    T_rigid = rigid_time(problem.model, um, move.x0, problem.include_position)
+    T_req = check_arrival_time(arrival_time, T_rigid)
+    lower = max(1, math.ceil(T_rigid * rate * (1.0 - 1e-12)))
+    K = max(round(T_req * rate), lower)
+    system = move.response
+    scale = move.error_scale(K * dt)
+    G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
+    w = -system.expm_x(K * dt, move.x0) / scale
+    sol = solve_peak_lp(G, w, np.ones(K), np.ones(K, dtype=bool))
+    if sol is None:
+        raise SolverError(f"fixed-time sampled planner: linear program failed at {K} samples; nothing is returned")
+    u, t_star, nu = sol
+    if t_star > um * (1.0 + LP_RTOL):
+        proof = " (proved by the LP's dual)" if dual_bound(G, w, nu) > um * (1.0 + BOUND_RTOL) else ""
+        raise InputError(
+            "arrival_time",
+            f"{T_req:.6g} s is too early: {K} samples at {rate:g} Hz need a peak command of {t_star:.6g} > u_max = "
+            f"{um:g}{proof} to arrive at rest; choose a later arrival_time",
+        )
+    u_exact = correct_exactly(G, w, u * (um / max(t_star, um)), um)
+    if u_exact is None:
+        raise SolverError("fixed-time sampled planner: exact correction left the bound; nothing is returned")
+    cmds = u_exact[::-1].copy()
+    out = finish_sampled(move, cmds, dt, None, False, lower, t0)
+    out.method = "fixed_time"
+    out.extra.update(
+        {
+            "requested_samples": round(T_req * rate),
+            "peak_command": float(np.max(np.abs(cmds))),
+            "least_peak": float(t_star),
+        }
     )
     return out
