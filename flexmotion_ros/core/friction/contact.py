@@ -174,6 +174,7 @@ class FrictionSystem:
         ) or not np.any(CA)
         nz = np.flatnonzero(c.C)
         self.unit = int(nz[0]) if nz.size == 1 and c.C[nz[0]] == 1.0 else None
+        self.CB = float(c.C @ self.B)  # C B: the scalar event test's input gain, fixed
         self._wmax = {}
         self._steps: dict[tuple[bool, float], tuple] = {}
         self.fast: ClosedForm | None = None
@@ -256,8 +257,8 @@ class FrictionSystem:
         if self.scalar:
             if mode == STICK:
                 return None  # a = C B u / C g is constant while y = 0
-            y0 = float(C @ x)
-            beta = float(C @ self.B) * level - self.F * mode * self.Cg
+            y0 = float(x[self.unit]) if self.unit is not None else float(C @ x)
+            beta = self.CB * level - self.F * mode * self.Cg
             if y0 * mode <= 0.0 or beta * mode >= 0.0:
                 return None  # already at zero (moving away) or not decelerating
             al = self.alpha
@@ -361,56 +362,61 @@ class FrictionSystem:
         order = np.argsort(times, kind="stable")
         out = np.empty((times.size, self.n))
         x = np.array(x0, dtype=float)
-        levels, breaks = u.levels, u.breaks
+        # plain Python floats in the loop (one segment per sample of a long sampled move: the loop's own
+        # overhead, not the matrix products, was most of an exact check)
+        levels, breaks = u.levels.tolist(), u.breaks.tolist()
+        targets, rows = times[order].tolist(), order.tolist()
+        n_levels, unit, C = len(levels), self.unit, self.contact.C
+        starts, segments, events = [], [], []
         k = 0
-        level = float(levels[0]) if levels.size else 0.0
-        y = float(self.contact.C @ x)
+        level = float(levels[0]) if n_levels else 0.0
+        y = float(C @ x)
         mode = int(np.sign(y)) if y != 0.0 else self.mode_at_rest(x, level)
         t = 0.0
-        run = FrictionRun(out)
-        ti = 0
-        while ti < times.size:
-            target = float(times[order[ti]])
-            t_int = float(breaks[k + 1]) if k < levels.size else math.inf
+        run = FrictionRun(out, segments, events, starts)
+        ti, n_times = 0, len(targets)
+        while ti < n_times:
+            target = targets[ti]
+            t_int = breaks[k + 1] if k < n_levels else math.inf
             seg_end = min(t_int, target)
             if seg_end > t:
                 if mode != STICK and t < lock_after:
-                    y = float(self.contact.C @ x)
+                    y = float(x[unit]) if unit is not None else float(C @ x)
                     if y * mode <= 0.0:  # at (or, by rounding, just past) zero velocity
                         new = self.mode_at_rest(x, level)
                         if new != mode:
-                            run.events.append((t, "stick" if new == STICK else "reversal", x.copy()))
+                            events.append((t, "stick" if new == STICK else "reversal", x.copy()))
                         self._zero_y(x)
                         mode = new
                 h = seg_end - t
                 tau = self.next_event(x, level, mode, h) if t < lock_after else None
                 step = h if tau is None else tau
-                run.starts.append(x.copy())
+                starts.append(x.copy())
                 x = self.advance(x, level, mode, step)
-                run.segments.append((t, t + step, mode, level))
+                segments.append((t, t + step, mode, level))
                 t = t + step if tau is not None and tau < h else seg_end
                 if tau is not None:
                     if mode == STICK:
                         mode = int(np.sign(self.applied(x, level)))
-                        run.events.append((t, "slip", x.copy()))
+                        events.append((t, "slip", x.copy()))
                     else:
-                        if self.unit is not None:
-                            x[self.unit] = 0.0
+                        if unit is not None:
+                            x[unit] = 0.0
                         new = self.mode_at_rest(x, level)
-                        run.events.append((t, "stick" if new == STICK else "reversal", x.copy()))
+                        events.append((t, "stick" if new == STICK else "reversal", x.copy()))
                         mode = new
                     continue
             if t >= target:
-                out[order[ti]] = x
+                out[rows[ti]] = x
                 ti += 1
                 continue
             if t >= t_int:  # next input level
                 k += 1
-                level = float(levels[k]) if k < levels.size else 0.0
+                level = float(levels[k]) if k < n_levels else 0.0
                 if mode == STICK:
                     new = self.mode_at_rest(x, level)
                     if mode == STICK and new != STICK:
-                        run.events.append((t, "slip", x.copy()))
+                        events.append((t, "slip", x.copy()))
                     mode = new
         return run
 

@@ -143,7 +143,7 @@ def plan_time_optimal_friction_zoh(
     lp = FrictionLP(problem, F, dt)
     xf, I = lp.xf, lp.I
     bang = continuous.certificate.status != FrictionStatus.SAMPLED  # levels +-u_max: windows make sense
-    first, turns = _directions(check, problem, continuous)
+    directions: list = []  # (first direction, turns) of the continuous move: an exact run, made when first needed
     lb = continuous.lower_bound
     lower = math.ceil(lb / dt * (1.0 - 1e-12)) if lb is not None else 0
     K0 = max(1, math.ceil(T / dt * (1.0 - 1e-12)))
@@ -172,6 +172,9 @@ def plan_time_optimal_friction_zoh(
                 f"{max(found, default=K)} samples; {reasons[-1] if reasons else 'no feasible linear program'})"
             )
         found[K] = None
+        if not directions:  # not needed where the exact sampled move's own commands pass (most moves)
+            directions.extend(_directions(check, problem, continuous))
+        first, turns = directions
         stretch = K * dt / T
         mids = (np.arange(K) + 0.5) * dt / stretch
         if bang:

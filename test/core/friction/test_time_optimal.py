@@ -31,6 +31,7 @@ from flexmotion_ros.core import (
     two_mass,
 )
 from flexmotion_ros.core.errors import FlexmotionError, SolverError
+from flexmotion_ros.core.friction import profile as profile_mod
 from flexmotion_ros.core.friction import zoh as zoh_mod
 from flexmotion_ros.core.friction.certificate import CLAIM, FrictionStatus
 from flexmotion_ros.core.friction.contact import (
@@ -646,3 +647,57 @@ def test_zoh_falls_back_on_the_structure_search_when_the_continued_extremal_has_
     states = exact.run(problem.x0, sp.input(), np.concatenate([np.linspace(0.0, T, 65), [2.0 * T]])).states
     scale = np.max(np.abs(states - m.rest_state(goal)), axis=0)
     assert np.max(np.abs(states[-2:] - m.rest_state(goal)) / scale) < 1e-8
+
+
+def _fuzz_case_85():
+    """Seed-18 fuzz case 85 (one mode, F = 0.23 u_max): an ``exact_sampled`` move in about 0.1 s."""
+    m = ModalModel(
+        b0=0.2475398635644658, c=0.0, omega=(17.08367498337336,), zeta=(0.23092339986398053,), b=(-1.1568104821418557,)
+    )
+    u_max = 1.9917117784675535
+    return MoveProblem(m, u_max, [0.0] * 4, 0.00020271199499823713), 0.22537098471164416 * u_max
+
+
+def test_exact_sampled_check_is_one_run_of_the_move(monkeypatch):
+    """The exact check of a sampled move ran the whole move twice (end state, then 129 points of its
+    error scale on a grid that made every segment a new matrix exponential): one run now, same verdict."""
+    from flexmotion_ros.core.friction import contact as contact_mod
+
+    problem, F = _fuzz_case_85()
+    runs = []
+    real = contact_mod.FrictionSystem.run
+
+    def counted(self, x0, u, times=None, lock_after=math.inf):
+        runs.append(u.duration)
+        return real(self, x0, u, times, lock_after)
+
+    monkeypatch.setattr(contact_mod.FrictionSystem, "run", counted)
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.certificate.status == FrictionStatus.SAMPLED
+    runs.clear()
+    checked = profile_mod.check_sampled(prof_lp(prof), np.asarray(prof.levels, float))
+    assert checked is not None
+    assert len(runs) == 1
+    x = simulate_coulomb(problem.model, problem.x0, prof.input(), F, [prof.duration, 2.0 * prof.duration + 1.0])
+    assert np.max(np.abs(x - problem.model.rest_state(problem.target))) < 1e-12
+
+
+def prof_lp(prof):
+    return FrictionLP(prof.problem, prof.coulomb_force, prof.sample_period)
+
+
+def test_zoh_of_an_exact_sampled_move_needs_no_direction_run(monkeypatch):
+    """An ``exact_sampled`` move on whole command periods is its own sequence: the ZOH checks it and is
+    done; the exact run that reads the move's directions (for the LPs near it) is not made."""
+    problem, F = _fuzz_case_85()
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.certificate.status == FrictionStatus.SAMPLED
+
+    def refuse(*_a, **_k):
+        raise AssertionError("directions read although no LP needs them")
+
+    monkeypatch.setattr(zoh_mod, "_directions", refuse)
+    sp = plan_time_optimal_friction_zoh(problem, F, 100.0, prof)
+    assert sp.samples * 0.01 == pytest.approx(prof.duration)
+    x = simulate_coulomb(problem.model, problem.x0, sp.input(), F, [sp.duration, sp.duration + 1.0])
+    assert np.max(np.abs(x - problem.model.rest_state(problem.target))) < 1e-12
