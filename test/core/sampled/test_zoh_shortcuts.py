@@ -4,8 +4,9 @@
   equals ``ModalResponse.expm_x_many`` on the same grid to 1e-12 of each
   column's size, with and without the position state, with and without the
   rigid body's damping ``c``.
-* ``sampled.zoh.grid_sample_vectors`` and the exact correction on the
-  LP's free windows (``correct_exactly(..., on=free)``): the exact ZOH
+* ``sampled.zoh.grid_sample_vectors``, the sequence from the switching
+  function's signs without an LP (``sampled.switch_samples``) and the exact
+  correction on the LP's free windows (``correct_exactly(..., on=free)``): the exact ZOH
   optimum of random moves has the same (proved fewest) sample count and the
   same proof as with the old sample vectors and the correction spread over
   every sample, lands exactly (matrix-exponential simulation) and stays
@@ -21,12 +22,19 @@ import pytest
 from hypothesis import given, settings
 from reference_solutions import deviation_from_target
 
-from flexmotion_ros.core import ModalModel, plan_time_optimal, plan_time_optimal_zoh, simulate_samples
+from flexmotion_ros.core import (
+    ModalModel,
+    SolverError,
+    plan_time_optimal,
+    plan_time_optimal_zoh,
+    rest_to_rest,
+    simulate_samples,
+)
 from flexmotion_ros.core.sampled import correction, lp_tools, zoh
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
 from flexmotion_ros.core.simulation.sample_grid import expm_x_grid
 
-from ..time_optimal.test_solver_properties import FINAL_RTOL, SETTINGS, describe, safe_note
+from ..time_optimal.test_solver_properties import FINAL_RTOL, SETTINGS, WB, describe, safe_note
 from .test_zoh import U_MAX, bench_problem
 from .test_zoh_properties import NYQUIST_FRACTION, zoh_cases
 
@@ -65,6 +73,7 @@ def test_grid_responses_equal_closed_forms(seed):
 def old_path(mp: pytest.MonkeyPatch) -> None:
     """The ZOH stage before the shortcuts: ``expm_x_many`` sample vectors, the correction over every sample."""
     full = correction.correct_exactly
+    mp.setattr(zoh, "SWITCH_SAMPLES", False)
     mp.setattr(zoh, "grid_sample_vectors", lp_tools.sample_vectors)
     mp.setattr(
         correction, "correct_exactly", lambda G, w, u, u_max, on=None: None if on is not None else full(G, w, u, u_max)
@@ -79,7 +88,7 @@ def check_lands(problem, sp) -> None:
     assert float(np.max(np.abs(dev[-1]) / scale)) <= FINAL_RTOL
 
 
-@settings(max_examples=30, **SETTINGS)
+@settings(max_examples=20, **SETTINGS)
 @given(zoh_cases("state"))
 def test_same_fewest_samples_as_the_old_path(case):
     problem, rate = case
@@ -90,10 +99,19 @@ def test_same_fewest_samples_as_the_old_path(case):
     if T * rate > 800:  # as the property tests: keep K moderate, never below the Nyquist limit
         rate = max(800 / T, wd_max / (NYQUIST_FRACTION * math.pi))
     safe_note(f"rate_hz={rate!r}")
-    new = plan_time_optimal_zoh(problem, rate, continuous)
     with pytest.MonkeyPatch.context() as mp:
         old_path(mp)
-        old = plan_time_optimal_zoh(problem, rate, continuous)
+        try:
+            old = plan_time_optimal_zoh(problem, rate, continuous)
+        except SolverError:  # e.g. a mode near the drawn rate's Nyquist limit: refused before, too
+            old = None
+    if old is None:
+        try:
+            check_lands(problem, plan_time_optimal_zoh(problem, rate, continuous))
+        except SolverError:
+            pass
+        return
+    new = plan_time_optimal_zoh(problem, rate, continuous)
     assert new.samples == old.samples
     assert new.minimal == old.minimal and new.lower_bound_samples == old.lower_bound_samples
     # the commands themselves may differ: a switching-function sign within rounding of zero can fall the
@@ -101,9 +119,13 @@ def test_same_fewest_samples_as_the_old_path(case):
     check_lands(problem, new)
 
 
-@pytest.mark.parametrize("modes", [3, 8])
-def test_bench_move_same_as_old_path(modes):
-    """``bench/planner_latency.py``'s 5 s move at 1 kHz: the correction on the windows is the one taken."""
+@pytest.mark.parametrize(("modes", "switch_samples"), [(1, True), (3, True), (5, False), (8, False)])
+def test_bench_move_same_as_old_path(modes, switch_samples):
+    """``bench/planner_latency.py``'s 5 s move at 1 kHz: same count, proof and (to 1e-9 of u_max) commands.
+
+    With 1-3 modes the switch-sample sequence is taken (no LP, no correction); with 5 and 8 the sampled
+    structure is not the continuous one, and the LP path decides (the correction on its windows).
+    """
     problem = bench_problem(modes, 5.0)
     continuous = plan_time_optimal(problem)
     calls = []
@@ -113,10 +135,30 @@ def test_bench_move_same_as_old_path(modes):
             correction, "correct_exactly", lambda *a, **k: calls.append(k.get("on") is not None) or real(*a, **k)
         )
         new = plan_time_optimal_zoh(problem, 1000.0, continuous)
-    assert calls == [True]  # the windows alone landed exactly: no K x n factorisation
+    assert calls == ([] if switch_samples else [True])  # never the K x n factorisation
     with pytest.MonkeyPatch.context() as mp:
         old_path(mp)
         old = plan_time_optimal_zoh(problem, 1000.0, continuous)
     assert new.samples == old.samples and new.minimal and old.minimal
     check_lands(problem, new)
     assert np.max(np.abs(new.commands - old.commands)) <= 1e-9 * U_MAX
+
+
+@pytest.mark.parametrize(("goal", "rate"), [(1.0, 50.0), (0.5, 1000.0), (-3.0, 200.0)])
+def test_switch_samples_take_no_lp_and_give_the_lp_vertex(goal, rate):
+    """Wie-Bernstein: the sequence from the signs is the LP's vertex (to rounding), with no LP solved."""
+    problem = rest_to_rest(WB, 1.0, goal)
+    continuous = plan_time_optimal(problem)
+
+    def no_lp(*args, **kwargs):
+        raise AssertionError("an LP was solved")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(zoh, "solve_peak_lp", no_lp)
+        new = plan_time_optimal_zoh(problem, rate, continuous)
+    with pytest.MonkeyPatch.context() as mp:
+        old_path(mp)
+        old = plan_time_optimal_zoh(problem, rate, continuous)
+    assert new.samples == old.samples and new.minimal and old.minimal
+    check_lands(problem, new)
+    assert np.max(np.abs(new.commands - old.commands)) <= 1e-9 * problem.u_max
