@@ -14,6 +14,7 @@ vibrating state.  From it, in one run:
   the other columns compare with (same run, same load);
 * ``cont``: ``plan_move`` without a rate -- the certified continuous plan;
 * ``sampled``: ``plan_move`` at ``--rate`` -- the exact ZOH plan a node needs to stream;
+* ``stage``: its ZOH stage alone (``plan_time_optimal_zoh`` given the continuous optimum), median;
 * ``rpl cold``: ``execution.replan.replan(..., warm_start=False)`` -- carry the
   estimate to the splice (10 samples ahead), decide, and plan at ``--rate``
   from nothing;
@@ -26,7 +27,9 @@ vibrating state.  From it, in one run:
   the cold and the warm certified optimum's duration / switch times (s), and
   ``dK`` the largest difference of their sample counts, over every state.
 
-Wall-time latency median / p99 / max (ms) over the states, and failures
+Latency median / p99 / max (ms) over the states, wall time or with ``--clock cpu``
+the process's CPU time (``time.process_time``: what the wall time would be on an
+idle core; the numerics run single-threaded), and failures
 (a plan the solver refused: the current plan would go on).
 
 ``--ab`` adds a second table, the linear-program backend before and after
@@ -43,6 +46,7 @@ A third table times the ZOH stage alone of ``planner_latency.py``'s 5 s move
     python bench/replan_latency.py
     python bench/replan_latency.py --states 200 --rate 500
     python bench/replan_latency.py --states 100 --ab
+    python bench/replan_latency.py --states 100 --clock cpu
 """
 
 from __future__ import annotations
@@ -71,6 +75,9 @@ from flexmotion_ros.execution.replan import ReplanStatus, replan
 from flexmotion_ros.execution.timeline import Segment, predicted_state
 
 LEAD = 10
+#: The clock of the latency columns (``--clock``): wall time, or the process's CPU time.
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+clock = CLOCKS["wall"]
 
 
 def stats(ms: list[float]) -> str:
@@ -89,15 +96,19 @@ def main() -> None:
     p.add_argument("--swing", type=float, default=0.3, help="largest added swing, fraction of each mode's excursion")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--ab", action="store_true", help="also: ZOH stage and cold replan, LPs by linprog vs highspy")
+    p.add_argument("--clock", choices=sorted(CLOCKS), default="wall", help="the latency columns' clock")
     a = p.parse_args()
+    global clock
+    clock = CLOCKS[a.clock]
     rng = np.random.default_rng(a.seed)
     print(
         f"# replanning latency (issue 14): python {platform.python_version()}, numpy {np.__version__}, "
         f"{os.cpu_count()} CPU(s), load {os.getloadavg()[0]:.1f}; {a.states} states per model, {a.rate:g} Hz, "
-        f"kick <= {a.kick} N s, swing <= {a.swing:.0%} of the move's"
+        f"kick <= {a.kick} N s, swing <= {a.swing:.0%} of the move's; clock: {a.clock}"
     )
     print(
         f"{'modes':>5} {'T nom s':>8} | {'r2r med':>7} | {'cont med':>8} {'p99':>7} | {'ZOH med':>8} {'p99':>7} | "
+        f"{'stage':>6} | "
         f"{'cold med':>8} {'p99':>7} {'max':>7} | {'warm med':>8} {'p99':>7} {'max':>7} | {'hit':>7} "
         f"{'dT s':>7} {'dsw s':>7} {'dK':>3} | {'failed':>6}"
     )
@@ -116,10 +127,10 @@ def main() -> None:
         excursion = np.max(np.abs(nominal.states[:, 2::2]), axis=0)
         r2r = []
         for _ in range(20):
-            t0 = time.perf_counter()
+            t0 = clock()
             plan_move(cfg, rest_to_rest(model, u_max, gamma), None)
-            r2r.append(1e3 * (time.perf_counter() - t0))
-        cont, sampled, full, warm, failed = [], [], [], [], 0
+            r2r.append(1e3 * (clock() - t0))
+        cont, sampled, stage, full, warm, failed = [], [], [], [], [], 0
         ab = {key: [] for key in ("zoh_lp", "zoh_hs", "rpl_lp", "rpl_hs", "cpu_lp", "cpu_hs")}
         identical = 0
         hits, dT, dsw, dK = 0, 0.0, 0.0, 0
@@ -130,21 +141,24 @@ def main() -> None:
             x[2::2] += a.swing * excursion * rng.uniform(-1.0, 1.0, n)
             problem = state_to_rest(model, u_max, x, gamma)
             try:
-                t0 = time.perf_counter()
+                t0 = clock()
                 optimum = plan_move(cfg, problem, None).continuous
-                cont.append(1e3 * (time.perf_counter() - t0))
-                t0 = time.perf_counter()
+                cont.append(1e3 * (clock() - t0))
+                t0 = clock()
                 plan_move(cfg, problem, a.rate)
-                sampled.append(1e3 * (time.perf_counter() - t0))
+                sampled.append(1e3 * (clock() - t0))
+                t0 = clock()
+                plan_time_optimal_zoh(problem, a.rate, optimum)
+                stage.append(1e3 * (clock() - t0))
             except FlexmotionError:
                 failed += 1
                 continue
-            t0 = time.perf_counter()
+            t0 = clock()
             out = replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=False)
-            took = 1e3 * (time.perf_counter() - t0)
-            t0 = time.perf_counter()
+            took = 1e3 * (clock() - t0)
+            t0 = clock()
             out_w = replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=True)
-            took_w = 1e3 * (time.perf_counter() - t0)
+            took_w = 1e3 * (clock() - t0)
             if out.status is not ReplanStatus.REPLANNED or out_w.status is not ReplanStatus.REPLANNED:
                 failed += 1
                 continue
@@ -161,6 +175,7 @@ def main() -> None:
                 identical += ab_once(ab, len(full) % 2 == 0, cfg, problem, optimum, seg, k, x, gamma, a.rate)
         print(
             f"{n:5d} {nominal.duration:8.3f} | {np.median(r2r):7.2f} | {stats(cont)[:17]} | {stats(sampled)[:17]} | "
+            f"{np.median(stage) if stage else float('nan'):6.2f} | "
             f"{stats(full)} | {stats(warm)} | {hits:3d}/{len(warm):<3d} {dT:7.1e} {dsw:7.1e} {dK:3d} | {failed:6d}"
         )
         if a.ab:
@@ -212,9 +227,9 @@ def zoh_5s_ab(repeats: int, rate: float) -> None:
                 order = (LpBackend.SCIPY, LpBackend.HIGHSPY) if r % 2 == 0 else (LpBackend.HIGHSPY, LpBackend.SCIPY)
                 for backend in order:
                     linear_program.DEFAULT_BACKEND = backend
-                    t0 = time.perf_counter()
+                    t0 = clock()
                     out[backend] = plan_time_optimal_zoh(problem, rate, optimum).commands
-                    times[backend].append(1e3 * (time.perf_counter() - t0))
+                    times[backend].append(1e3 * (clock() - t0))
             lp, hs = np.array(times[LpBackend.SCIPY]), np.array(times[LpBackend.HIGHSPY])
             same = np.array_equal(out[LpBackend.SCIPY], out[LpBackend.HIGHSPY])
             print(
@@ -234,13 +249,13 @@ def ab_once(ab: dict, linprog_first: bool, cfg, problem, continuous, seg, k, x, 
         for backend in order:
             linear_program.DEFAULT_BACKEND = backend  # what solve_lp uses when not told
             tag = "lp" if backend is LpBackend.SCIPY else "hs"
-            t0 = time.perf_counter()
+            t0 = clock()
             zoh = plan_time_optimal_zoh(problem, rate, continuous)
-            ab[f"zoh_{tag}"].append(1e3 * (time.perf_counter() - t0))
+            ab[f"zoh_{tag}"].append(1e3 * (clock() - t0))
             commands[tag] = zoh.commands
-            t0, c0 = time.perf_counter(), time.thread_time()
+            t0, c0 = clock(), time.thread_time()
             replan([seg], k, LEAD, x, k, config=cfg, target=gamma, warm_start=False)
-            ab[f"rpl_{tag}"].append(1e3 * (time.perf_counter() - t0))
+            ab[f"rpl_{tag}"].append(1e3 * (clock() - t0))
             ab[f"cpu_{tag}"].append(1e3 * (time.thread_time() - c0))
     finally:
         linear_program.DEFAULT_BACKEND = default

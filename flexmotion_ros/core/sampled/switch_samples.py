@@ -1,0 +1,158 @@
+"""A sampled bang-bang sequence from the switching function's signs: one free sample per switch, no LP.
+
+At a vertex of the peak LP of :mod:`.zoh` (``n`` equality rows) at most
+``n - 1`` samples lie strictly inside ``(-t, t)``; every other sample is at
+``+-t`` with the sign of the switching function.  A sampled time-optimal
+sequence therefore is, as a rule, ``+-t`` everywhere but one sample per
+switch.  Given the signs ``S_m = nu^T g_m`` (``nu``: the continuous optimum's
+dual direction), the sample of each sign change whose interval holds the
+switch (the smaller ``|S_m|``; moved to the switch's other sample if its
+value comes out past the peak) is left free, and the final-state equations
+are linear in the peak ``t`` and the free values ``v_j``::
+
+    t sum_{m fixed} sign_m g_m + sum_j v_j g_{m_j} = w,
+
+``n`` equations in ``c + 1`` unknowns (``c`` sign changes).  The least peak
+on this pattern is a linear program in the ``d = c + 1 - n`` dimensions of
+the solutions (``d <= 3``: a rotating, damped structure has a few switches
+more than states): the best vertex of a polytope, among the intersections of
+``d`` of its ``2 c + 1`` edges, then the samples at the peak pinned there and
+the rest solved exactly -- ``O(switches)`` work with no LP solver, whatever
+the number of samples ``K``.  The sequence is kept only if ``0 <= t <=
+u_max``, ``|v_j| <= t`` and it lands exactly (to rounding); otherwise (the
+sampled structure is not the continuous one: switches a few samples away
+from the signs' changes, two switches within a sample, more free samples)
+the caller solves the LP as before.  Nothing here proves anything: the
+sample count's proof is the caller's (``K dt >= T*``, or the LP's dual bound
+for the count below), and the sequence still passes the exact simulation of
+:func:`.check.verified_samples`.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+
+import numpy as np
+
+from .correction import lands_exactly
+
+#: Free samples left past ``n - 1 + MAX_FREEDOM`` (more switches than states), or more than
+#: ``MAX_VERTICES`` candidate vertices: the LP decides.
+MAX_FREEDOM = 3
+MAX_VERTICES = 1000
+#: Attempts at most, each moving the free samples past the peak to their switch's other sample.
+SWAP_ROUNDS = 3
+#: A free sample within this (relative) of the peak at the minimum is pinned there.
+PIN_RTOL = 1e-9
+
+
+def switch_sample_sequence(G: np.ndarray, w: np.ndarray, S: np.ndarray, u_max: float) -> np.ndarray | None:
+    """``u`` (rows of ``G``: ``m`` = samples to go) with ``G^T u = w``, ``|u| <= u_max``, or None.
+
+    Parameters
+    ----------
+    G : ndarray, shape (K, n)
+        Sample vectors ``g_m`` (scaled as the caller's LP).
+    w : ndarray, shape (n,)
+        The final-state target of the sum ``sum_m g_m u_m`` (same scaling).
+    S : ndarray, shape (K,)
+        Switching-function values ``nu^T g_m``: their signs are the commands'.
+    u_max : float
+        Bound on every command (N).
+    """
+    K, n = G.shape
+    if K < n:
+        return None
+    signs = np.where(S >= 0.0, 1.0, -1.0)
+    change = np.flatnonzero(signs[1:] != signs[:-1])
+    # the sample of each switch whose interval holds it: first the smaller |S|; a free sample past the
+    # peak moves to the switch's other sample (the sampled switch fell one sample over)
+    first = np.abs(S[change]) <= np.abs(S[change + 1])
+    for _ in range(SWAP_ROUNDS):
+        picks = np.where(first, change, change + 1)
+        free = np.unique(picks)
+        u, over = _sequence_on(G, w, signs, free, u_max)
+        if u is not None:
+            return u
+        if over is None or not over.any():
+            return None
+        first ^= np.isin(picks, free[over])
+    return None
+
+
+def _sequence_on(G, w, signs, free, u_max) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The sequence with the samples ``free`` free, or ``(None, the free samples past the peak or None)``."""
+    fixed = signs.copy()
+    fixed[free] = 0.0
+    M = np.column_stack([fixed @ G, G[free].T])  # n x (free + 1): the peak t, then the free samples
+    x, x0 = _min_peak(M, w)
+    if x is None:
+        return None, (None if x0 is None else np.abs(x0[1:]) > x0[0])
+    # the vertex to rounding: the free samples at the peak pinned there, the others solved exactly
+    t, v = x[0], x[1:]
+    if np.any(np.abs(v) > t * (1.0 + PIN_RTOL)):  # a square system's solution past the peak: try the neighbours
+        return None, np.abs(v) > t * (1.0 + PIN_RTOL)
+    pin = np.abs(v) >= t * (1.0 - PIN_RTOL)
+    fixed[free[pin]] = np.sign(v[pin])
+    rest = free[~pin]
+    x = _solve(np.column_stack([fixed @ G, G[rest].T]), w)
+    t, v = float(x[0]), x[1:]
+    if not (0.0 <= t <= u_max) or np.any(np.abs(v) > t):
+        return None, None
+    u = fixed * t
+    u[rest] = v
+    return (u, None) if lands_exactly(G, w, u) else (None, None)
+
+
+@functools.lru_cache(maxsize=64)
+def _combinations(m: int, d: int) -> np.ndarray:
+    """Every ``d`` of ``m`` row indices, shape ``(comb(m, d), d)`` (kept: the same few sizes recur)."""
+    out = np.array(list(itertools.combinations(range(m), d)), dtype=np.intp).reshape(-1, d)
+    out.flags.writeable = False
+    return out
+
+
+def _solve(M: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Least-norm ``M x = w`` with one refinement (the residual to rounding)."""
+    x = np.linalg.lstsq(M, w, rcond=None)[0]
+    return x + np.linalg.lstsq(M, w - M @ x, rcond=None)[0]
+
+
+def _min_peak(M: np.ndarray, w: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(x, x0)``: ``x = (t, v)`` minimising ``t`` over ``M x = w``, ``|v_j| <= t``, ``t >= 0`` (None if none
+    is found: past ``MAX_FREEDOM``, rank-deficient, infeasible), and the least-norm solution ``x0``.
+
+    The solutions are ``x0 + N z`` (``N``: the null space of ``M``, ``d``
+    columns); with ``d <= MAX_FREEDOM`` the optimum is a vertex of the polytope
+    ``A z <= b``, found among the intersections of every ``d`` of its rows.
+    """
+    n, p = M.shape
+    d = p - n
+    if d < 0:
+        return None, None
+    x0 = _solve(M, w)
+    if d > MAX_FREEDOM or math.comb(2 * p - 1, d) > MAX_VERTICES:
+        return None, x0
+    _, sv, Vt = np.linalg.svd(M)
+    if sv.size < n or sv[-1] <= np.finfo(float).eps * p * sv[0]:  # rank-deficient: the LP decides
+        return None, None
+    if d == 0:
+        return x0, x0
+    N = Vt[n:].T  # p x d
+    t0, tN, v0, vN = x0[0], N[0], x0[1:], N[1:]
+    A = np.vstack([vN - tN, -vN - tN, -tN[None, :]])  # v - t <= 0, -v - t <= 0, -t <= 0
+    b = np.concatenate([t0 - v0, t0 + v0, [t0]])
+    rows = _combinations(A.shape[0], d)
+    sub = A[rows]  # (pairs, d, d)
+    det = np.linalg.det(sub) if d > 1 else sub[:, 0, 0]
+    ok = np.abs(det) > 1e-12 * np.max(np.abs(A))
+    if not ok.any():
+        return None, x0
+    z = np.linalg.solve(sub[ok], b[rows[ok]][..., None])[..., 0]  # (vertices, d)
+    feasible = np.all(z @ A.T <= b + 1e-9 * max(1.0, float(np.max(np.abs(b)))), axis=1)
+    if not feasible.any():
+        return None, x0
+    z = z[feasible]
+    return x0 + N @ z[np.argmin(z @ tN)], x0
