@@ -418,6 +418,11 @@ class CommandStream:
         with self._cond:
             return self._t_anchor + (k - self._k_anchor) * self.dt
 
+    def anchor(self) -> tuple[float, int]:
+        """``(t_anchor, k_anchor)``: sample ``k_anchor`` is due at ``t_anchor`` (clock s); see :meth:`time_of`."""
+        with self._cond:
+            return self._t_anchor, self._k_anchor
+
     def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
 
