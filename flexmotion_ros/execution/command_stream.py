@@ -39,6 +39,9 @@ import numpy as np
 
 from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
 
+#: How often ``on_idle`` runs while a silent stream sleeps (s).
+IDLE_TICK_S = 0.1
+
 
 @dataclass(frozen=True, kw_only=True)
 class StreamStep:
@@ -185,6 +188,10 @@ class CommandStream:
         ``f(slack)`` after each sample, with the time left until the next
         deadline (s): work that must not delay a sample (e.g.
         :class:`~.realtime.SlackCollector`).  Called from the stream thread.
+    on_idle : callable, optional
+        ``f()`` every :data:`IDLE_TICK_S` while the stream sleeps (idle and
+        silent: no deadline to keep), in the stream thread: the periodic work of
+        a process whose only thread that must run is this one.
     """
 
     def __init__(
@@ -200,6 +207,7 @@ class CommandStream:
         sleep: Callable[[float], None] = time.sleep,
         on_fault: Callable[[StreamHalt], None] | None = None,
         after_sample: Callable[[float], None] | None = None,
+        on_idle: Callable[[], None] | None = None,
     ) -> None:
         self.dt = 1.0 / float(rate_hz)
         self._publish = publish
@@ -208,6 +216,7 @@ class CommandStream:
         self._on_finish = on_finish
         self._on_fault = on_fault
         self._after_sample = after_sample
+        self._on_idle = on_idle
         self._clock = clock
         self._sleep = sleep
         self._cond = threading.Condition()
@@ -538,7 +547,11 @@ class CommandStream:
             while True:
                 with self._cond:
                     while not self._stop and self._sleeping():
-                        self._cond.wait()  # start_now / the setter re-anchor the deadlines
+                        # start_now / the setter re-anchor the deadlines
+                        if self._on_idle is None:
+                            self._cond.wait()
+                        elif not self._cond.wait(IDLE_TICK_S):
+                            self._on_idle()
                     if self._stop:
                         break
                 self.step()

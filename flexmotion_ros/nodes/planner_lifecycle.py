@@ -60,7 +60,8 @@ class LifecycleTransitions:
             p = self.stream.priority
             self.get_logger().info(
                 f"the command stream runs in process {self.stream.process.pid} under SCHED_FIFO {p} (its other "
-                f"threads {max(1, p - 1)}); this process's threads keep normal scheduling"
+                f"threads {max(1, p - 1)}); this process's threads "
+                + (f"SCHED_FIFO {max(1, p - 2)}" if self._lock_sharers_raised else "keep normal scheduling")
             )
         self._stops.start()
         self._lifecycle = "active"
@@ -79,9 +80,15 @@ class LifecycleTransitions:
         """
         priority = self.stream.priority
         self._lock_sharers_raised = False
-        if isinstance(self.stream, RemoteStream):  # the stream shares no lock with this process
-            return
         if priority <= 0 or self._children is None:
+            return
+        if isinstance(self.stream, RemoteStream):
+            # The stream shares no lock with this process: its threads go two steps below the stream (below the
+            # stream process's own), so that a loaded machine does not delay a stop's answer and splice.
+            error = raise_threads(max(1, priority - 2), keep_normal=NUMERIC_THREADS)
+            if error:
+                self.get_logger().warning(error)
+            self._lock_sharers_raised = error is None
             return
         self._collector.enable()  # a collection holds the lock as well: collections in the stream's slack
         error = raise_threads(max(1, priority - 1), keep_normal=NUMERIC_THREADS)
