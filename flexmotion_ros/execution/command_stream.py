@@ -65,6 +65,14 @@ class StreamStep:
     value: float | None
 
 
+class StreamStopped(RuntimeError):
+    """A segment offered to a stream that has halted (shutdown, deactivation, a fault): nothing is installed.
+
+    A request still being planned when the node shuts down ends so: the caller
+    answers it as not planned, not as an internal failure.
+    """
+
+
 class HaltCause(Enum):
     """Why the stream ended (the values are the strings the log shows)."""
 
@@ -381,7 +389,7 @@ class CommandStream:
     def _check_not_halted(self) -> None:
         if self._stop:
             halt = self.halted
-            raise RuntimeError(
+            raise StreamStopped(
                 "the command stream is stopped" + (f" ({halt.cause.value}: {halt.why})" if halt is not None else "")
             )
 
@@ -566,4 +574,4 @@ class CommandStream:
         self._halt(HaltCause.STOPPED, self._stop_why)
 
 
-__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep"]
+__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep", "StreamStopped"]

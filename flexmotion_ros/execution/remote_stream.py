@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .command_stream import HaltCause, SampleRecord, StreamHalt
+from .command_stream import HaltCause, SampleRecord, StreamHalt, StreamStopped
 from .stream_process import NO_SEGMENT, StreamProcess, recv
 from .timeline import Segment, is_hold, predicted_state
 
@@ -225,7 +225,7 @@ class RemoteStream:
     def _check_not_halted(self) -> None:
         if self.halted is not None or not self._active:
             halt = self.halted
-            raise RuntimeError(
+            raise StreamStopped(
                 "the command stream is stopped" + (f" ({halt.cause.value}: {halt.why})" if halt is not None else "")
             )
 
