@@ -46,6 +46,9 @@ wins, a goal superseded before it was planned is answered so and counted
 planned and is answered within 10 ms.  The executable plans in two forked
 child processes (:mod:`flexmotion_ros.execution.plan_process`: goals, stops),
 so planning never holds the stream thread's interpreter lock.
+The command stream itself runs in a third child, forked last, with its own
+rclpy context: the deadline loop and the ``commands`` publisher, nothing else
+(:mod:`.planner_stream` says when; the hold even if this process dies).
 
 Preemption: a goal (or stop) during a move is planned from the state the
 timeline predicts at a sample ``k_s`` far enough ahead to cover the planning
