@@ -39,6 +39,9 @@ import numpy as np
 
 from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
 
+#: How often ``on_idle`` runs while a silent stream sleeps (s).
+IDLE_TICK_S = 0.1
+
 
 @dataclass(frozen=True, kw_only=True)
 class StreamStep:
@@ -60,6 +63,14 @@ class StreamStep:
     deadline: float
     time: float
     value: float | None
+
+
+class StreamStopped(RuntimeError):
+    """A segment offered to a stream that has halted (shutdown, deactivation, a fault): nothing is installed.
+
+    A request still being planned when the node shuts down ends so: the caller
+    answers it as not planned, not as an internal failure.
+    """
 
 
 class HaltCause(Enum):
@@ -185,6 +196,10 @@ class CommandStream:
         ``f(slack)`` after each sample, with the time left until the next
         deadline (s): work that must not delay a sample (e.g.
         :class:`~.realtime.SlackCollector`).  Called from the stream thread.
+    on_idle : callable, optional
+        ``f()`` every :data:`IDLE_TICK_S` while the stream sleeps (idle and
+        silent: no deadline to keep), in the stream thread: the periodic work of
+        a process whose only thread that must run is this one.
     """
 
     def __init__(
@@ -200,6 +215,7 @@ class CommandStream:
         sleep: Callable[[float], None] = time.sleep,
         on_fault: Callable[[StreamHalt], None] | None = None,
         after_sample: Callable[[float], None] | None = None,
+        on_idle: Callable[[], None] | None = None,
     ) -> None:
         self.dt = 1.0 / float(rate_hz)
         self._publish = publish
@@ -208,6 +224,7 @@ class CommandStream:
         self._on_finish = on_finish
         self._on_fault = on_fault
         self._after_sample = after_sample
+        self._on_idle = on_idle
         self._clock = clock
         self._sleep = sleep
         self._cond = threading.Condition()
@@ -372,7 +389,7 @@ class CommandStream:
     def _check_not_halted(self) -> None:
         if self._stop:
             halt = self.halted
-            raise RuntimeError(
+            raise StreamStopped(
                 "the command stream is stopped" + (f" ({halt.cause.value}: {halt.why})" if halt is not None else "")
             )
 
@@ -417,6 +434,11 @@ class CommandStream:
         """Deadline (clock s) of global sample ``k``."""
         with self._cond:
             return self._t_anchor + (k - self._k_anchor) * self.dt
+
+    def anchor(self) -> tuple[float, int]:
+        """``(t_anchor, k_anchor)``: sample ``k_anchor`` is due at ``t_anchor`` (clock s); see :meth:`time_of`."""
+        with self._cond:
+            return self._t_anchor, self._k_anchor
 
     def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
@@ -533,7 +555,11 @@ class CommandStream:
             while True:
                 with self._cond:
                     while not self._stop and self._sleeping():
-                        self._cond.wait()  # start_now / the setter re-anchor the deadlines
+                        # start_now / the setter re-anchor the deadlines
+                        if self._on_idle is None:
+                            self._cond.wait()
+                        elif not self._cond.wait(IDLE_TICK_S):
+                            self._on_idle()
                     if self._stop:
                         break
                 self.step()
@@ -548,4 +574,4 @@ class CommandStream:
         self._halt(HaltCause.STOPPED, self._stop_why)
 
 
-__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep"]
+__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep", "StreamStopped"]

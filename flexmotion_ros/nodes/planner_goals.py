@@ -42,6 +42,7 @@ from ..execution import (
     plan_summary,
     splice_point,
 )
+from ..execution.command_stream import StreamStopped
 from ..execution.measured_state import AT_REST_TOL, EarlyArrival
 from ..execution.plan_process import PlanProcessClosed
 from ..execution.realtime import lower_threads
@@ -248,7 +249,7 @@ class GoalHandling:
             out = self._plan_request(target, execute, source, t_req, arrival_time, ticket)
         except (FlexmotionError, SolverError) as exc:
             return self._refuse(source, str(exc))
-        except PlanProcessClosed as exc:  # a request still in flight when the node shuts down
+        except (PlanProcessClosed, StreamStopped) as exc:  # a request still in flight when the node shuts down
             return self._refuse(source, f"not planned: {exc}")
         except Exception as exc:  # noqa: BLE001 -- keep serving whatever a method raises
             self.get_logger().error(f"{source}: unexpected {type(exc).__name__}")

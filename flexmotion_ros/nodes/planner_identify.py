@@ -140,10 +140,10 @@ class IdentifyHandling:
         return dict(self._ident_status)
 
     # --------------------------------------------------------- stream hooks
-    def _record_sent(self, value: float) -> None:
-        """The stream thread, just before publishing a command: log its system time and value."""
+    def _record_sent(self, value: float, t_ns: int | None = None) -> None:
+        """The stream thread, just before publishing a command: log its system time (``t_ns``: the stream process's) and value."""
         row = (value,) if self._sent_width == 1 else np.broadcast_to(np.asarray(value, float), (self._sent_width,))
-        self._sent_log.append(time.time_ns(), row)
+        self._sent_log.append(time.time_ns() if t_ns is None else t_ns, row)
 
     def _identification_segment_started(self, seg: Segment) -> None:
         """The stream thread, after a segment's first command: where it is in the sent log."""

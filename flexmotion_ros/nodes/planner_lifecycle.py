@@ -18,6 +18,7 @@ from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
 from ..core.errors import FlexmotionError
 from ..execution.command_stream import StreamHalt
 from ..execution.realtime import lower_threads, raise_threads
+from ..execution.remote_stream import RemoteStream
 
 #: Python threads of the node that compute in-process: they keep normal scheduling.
 NUMERIC_THREADS = ("flexmotion-learn", "flexmotion-identify")
@@ -55,6 +56,13 @@ class LifecycleTransitions:
         self.stream.start()
         if self.stream.priority_error:
             self.get_logger().warning(self.stream.priority_error)
+        elif isinstance(self.stream, RemoteStream) and self.stream.priority > 0:
+            p = self.stream.priority
+            self.get_logger().info(
+                f"the command stream runs in process {self.stream.process.pid} under SCHED_FIFO {p} (its other "
+                f"threads {max(1, p - 1)}); this process's threads "
+                + (f"SCHED_FIFO {max(1, p - 2)}" if self._lock_sharers_raised else "keep normal scheduling")
+            )
         self._stops.start()
         self._lifecycle = "active"
         self._status.set_lifecycle("active")
@@ -73,6 +81,14 @@ class LifecycleTransitions:
         priority = self.stream.priority
         self._lock_sharers_raised = False
         if priority <= 0 or self._children is None:
+            return
+        if isinstance(self.stream, RemoteStream):
+            # The stream shares no lock with this process: its threads go two steps below the stream (below the
+            # stream process's own), so that a loaded machine does not delay a stop's answer and splice.
+            error = raise_threads(max(1, priority - 2), keep_normal=NUMERIC_THREADS)
+            if error:
+                self.get_logger().warning(error)
+            self._lock_sharers_raised = error is None
             return
         self._collector.enable()  # a collection holds the lock as well: collections in the stream's slack
         error = raise_threads(max(1, priority - 1), keep_normal=NUMERIC_THREADS)
@@ -182,6 +198,8 @@ class LifecycleTransitions:
         stream = getattr(self, "stream", None)
         if stream is not None:
             stream.stop("cleanup")
+            if isinstance(stream, RemoteStream):
+                stream.close()
             sys.setswitchinterval(self._switch_interval)
             del self.stream
         listener = getattr(self, "_listener", None)

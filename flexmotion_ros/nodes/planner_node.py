@@ -46,6 +46,9 @@ wins, a goal superseded before it was planned is answered so and counted
 planned and is answered within 10 ms.  The executable plans in two forked
 child processes (:mod:`flexmotion_ros.execution.plan_process`: goals, stops),
 so planning never holds the stream thread's interpreter lock.
+The command stream itself runs in a third child, forked last, with its own
+rclpy context: the deadline loop and the ``commands`` publisher, nothing else
+(:mod:`.planner_stream` says when; the hold even if this process dies).
 
 Preemption: a goal (or stop) during a move is planned from the state the
 timeline predicts at a sample ``k_s`` far enough ahead to cover the planning
@@ -123,8 +126,10 @@ from ..execution.learning import identification_settings
 from ..execution.measured_state import StateSource, state_settings
 from ..execution.plan_process import PlanningProcesses
 from ..execution.realtime import SlackCollector
+from ..execution.remote_stream import RemoteStream
 from ..execution.requests import RequestWorker
 from ..execution.splice import StopPreparer
+from ..execution.stream_process import StreamProcess
 from . import messages, multi_axis
 from .measured_state import StateListener
 from .parameters import declare, declare_method_options, declared_values, validating_callback
@@ -138,6 +143,7 @@ from .planner_status import DIAGNOSTIC_NAME, StatusReporter
 from .planner_stops import StopHandling
 from .planner_stream import StreamGlue
 from .runner import run
+from .stream_child import open_output
 
 NODE_NAME = "flexmotion_planner"
 #: Installed segments kept for inspection (``PlannerNode.installed``).
@@ -179,6 +185,10 @@ class PlannerNode(
         :func:`main` does), so that planning never holds this process's
         interpreter lock while the stream thread needs it; None: plan in a
         thread of this process.  The node does not close them.
+    stream_process : StreamProcess, optional
+        Run the command stream there (forked before ``rclpy.init``, as
+        :func:`main` does: :mod:`.planner_stream` says when); None: in a
+        thread of this process.  The node does not close it.
 
     Raises
     ------
@@ -187,10 +197,16 @@ class PlannerNode(
     """
 
     def __init__(
-        self, *, autostart: bool = True, planning: PlanningProcesses | None = None, **node_kwargs: Any
+        self,
+        *,
+        autostart: bool = True,
+        planning: PlanningProcesses | None = None,
+        stream_process: StreamProcess | None = None,
+        **node_kwargs: Any,
     ) -> None:
         super().__init__(NODE_NAME, **node_kwargs)
         self._children = planning
+        self._stream_process = stream_process
         self._lock_sharers_raised = False  # the other threads under SCHED_FIFO (stream_priority, planning children)
         self._collector = SlackCollector()  # garbage collection in the stream's slack (enabled with the above)
         self._lifecycle = "unconfigured"  # unconfigured / inactive / active / finalized
@@ -272,7 +288,11 @@ class PlannerNode(
 
         # a lifecycle publisher: nothing goes out unless active (the hold is sent before deactivating it)
         # 'commands' (output: stream) or the trajectory topic (output: trajectory), see planner_output
-        self.commands_publisher = self._output_publisher(v, COMMAND_QOS)
+        self._output = check_output(v, self._config)
+        if self._streams_remotely(v):  # the stream process publishes 'commands' (planner_stream)
+            self.commands_publisher = self._remote_publisher(COMMAND_QOS)
+        else:
+            self.commands_publisher = self._output_publisher(v, COMMAND_QOS)
         self._trajectory_pub = self.create_publisher(JointTrajectory, "~/planned_trajectory", LATCHED_QOS)
         # /diagnostics from its own thread (started last), not an executor timer
         self._status = StatusReporter(
@@ -347,6 +367,8 @@ class PlannerNode(
         stream = getattr(self, "stream", None)
         if stream is not None:
             stream.stop("shutdown")
+            if isinstance(stream, RemoteStream):
+                stream.close()
             sys.setswitchinterval(self._switch_interval)
         listener = getattr(self, "_listener", None)
         if listener is not None:
@@ -485,9 +507,18 @@ def main(args: list[str] | None = None) -> int:
     except (RuntimeError, OSError) as exc:
         sys.stderr.write(f"{NODE_NAME}: planning in-process (no planning processes: {exc})\n")
         planning = None
+    try:  # last: it holds the planning children's pipes only as long as it lives, and it ends with this process
+        streaming: StreamProcess | None = StreamProcess.fork(open_output)
+    except (RuntimeError, OSError) as exc:
+        sys.stderr.write(f"{NODE_NAME}: streaming in-process (no stream process: {exc})\n")
+        streaming = None
     try:
-        return run(lambda: PlannerNode(planning=planning), SingleThreadedExecutor, NODE_NAME, args)
+        return run(
+            lambda: PlannerNode(planning=planning, stream_process=streaming), SingleThreadedExecutor, NODE_NAME, args
+        )
     finally:
+        if streaming is not None:
+            streaming.close()
         if planning is not None:
             planning.close()
 

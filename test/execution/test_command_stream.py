@@ -14,7 +14,7 @@ from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.execution import HOLD, CommandStream, Segment, lead_samples, splice_point
-from flexmotion_ros.execution.command_stream import HaltCause
+from flexmotion_ros.execution.command_stream import HaltCause, StreamStopped
 from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, StopPreparer, ready_stop_usable
 
 RATE = 100.0
@@ -402,3 +402,18 @@ def test_the_sample_record_is_a_ring_of_constant_size():
     assert rec.last(3, before=2)[0].tolist() == [7.0, 8.0, 9.0]
     assert rec.last(10)[0].tolist() == [7.0, 8.0, 9.0, 10.0, 11.0]  # only what is kept
     assert rec.last(4, before=3)[0].tolist() == [7.0, 8.0]  # older ones are gone
+
+
+def test_a_segment_offered_to_a_stopped_stream_is_refused_as_stopped_not_as_an_internal_failure():
+    # old main: a plain RuntimeError, which the node answered as "unexpected RuntimeError" (an internal error
+    # text in bench/storm.py: a stop still being planned when the node shut down)
+    stream, _, rec = make_stream()
+    stream.start_now(segment([1.0, 2.0]))
+    stream.step()
+    halt = stream.stop("shutdown")
+    assert halt.hold_sent and rec.values == [1.0, HOLD]
+    with pytest.raises(StreamStopped, match="stopped: shutdown"):
+        stream.start_now(segment([1.0]))
+    with pytest.raises(StreamStopped):
+        stream.splice(segment([1.0]), stream.snapshot()[0] + 1)
+    assert rec.values == [1.0, HOLD]  # nothing after the hold
