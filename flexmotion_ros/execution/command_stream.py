@@ -164,7 +164,34 @@ class SampleRecord:
         return rows[:, 0].copy(), rows[:, 1].copy()
 
 
-class CommandStream:
+class RecordedTiming:
+    """The timing read-outs of a stream that keeps a :class:`SampleRecord` as ``self._record``."""
+
+    _record: SampleRecord
+
+    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
+
+        Both empty for ``n <= 1`` (a single sample has no period); at most
+        the samples kept.  ``before``: the samples sent since the window
+        ended (a report made later, off the stream thread).
+        """
+        if n <= 1:
+            return np.empty(0), np.empty(0)
+        return self._record.last(n, before)
+
+    @property
+    def sent_times(self) -> np.ndarray:
+        """Send times (clock s) of the samples kept, oldest first."""
+        return self._record.last(len(self._record))[0]
+
+    @property
+    def lateness(self) -> np.ndarray:
+        """Send time minus deadline (s) of the samples kept, oldest first."""
+        return self._record.last(len(self._record))[1]
+
+
+class CommandStream(RecordedTiming):
     """Publish one command per period, at absolute deadlines.
 
     Parameters
@@ -440,27 +467,6 @@ class CommandStream:
         with self._cond:
             return self._t_anchor, self._k_anchor
 
-    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
-
-        Both empty for ``n <= 1`` (a single sample has no period); at most
-        the ``record`` samples kept.  ``before``: the samples sent since the
-        window ended (a report made later, off the stream thread).
-        """
-        if n <= 1:
-            return np.empty(0), np.empty(0)
-        return self._record.last(n, before)
-
-    @property
-    def sent_times(self) -> np.ndarray:
-        """Send times (clock s) of the samples kept (at most ``record``), oldest first."""
-        return self._record.last(len(self._record))[0]
-
-    @property
-    def lateness(self) -> np.ndarray:
-        """Send time minus deadline (s) of the samples kept, oldest first."""
-        return self._record.last(len(self._record))[1]
-
     # --------------------------------------------------------------------- loop
     def step(self) -> StreamStep | None:
         """Handle the next sample: sleep until its deadline, then publish its command.
@@ -574,4 +580,4 @@ class CommandStream:
         self._halt(HaltCause.STOPPED, self._stop_why)
 
 
-__all__ = ["CommandStream", "HaltCause", "StreamHalt", "StreamStep", "StreamStopped"]
+__all__ = ["CommandStream", "HaltCause", "RecordedTiming", "SampleRecord", "StreamHalt", "StreamStep", "StreamStopped"]

@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .command_stream import HaltCause, SampleRecord, StreamHalt, StreamStopped
+from .command_stream import HaltCause, RecordedTiming, SampleRecord, StreamHalt, StreamStopped
 from .stream_process import NO_SEGMENT, StreamProcess, recv
 from .timeline import Segment, is_hold, predicted_state
 
@@ -44,7 +44,7 @@ def settle_tail(segment: Segment, n: int) -> None:
     segment.settle_samples = n
 
 
-class RemoteStream:
+class RemoteStream(RecordedTiming):
     """The command stream of a child process, seen from the planner (module docstring).
 
     Parameters
@@ -264,23 +264,6 @@ class RemoteStream:
         """Deadline (monotonic s) of global sample ``k``."""
         t_anchor, k_anchor = self.process.progress.anchor
         return t_anchor + (k - k_anchor) * self.dt
-
-    # ------------------------------------------------------------------ timing
-    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Send times (monotonic s) and lateness (s) of the last ``n`` samples replayed, ``before`` samples ago."""
-        if n <= 1:
-            return np.empty(0), np.empty(0)
-        return self._record.last(n, before)
-
-    @property
-    def sent_times(self) -> np.ndarray:
-        """Send times (s) of the samples kept, oldest first."""
-        return self._record.last(len(self._record))[0]
-
-    @property
-    def lateness(self) -> np.ndarray:
-        """Send time minus deadline (s) of the samples kept, oldest first."""
-        return self._record.last(len(self._record))[1]
 
     # ---------------------------------------------------------------- follower
     def replay(self) -> None:
