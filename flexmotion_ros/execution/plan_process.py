@@ -28,6 +28,7 @@ import pickle
 import signal
 import sys
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -180,21 +181,25 @@ class PlanProcess:
                 f.close()
             except OSError:
                 pass
-        deadline = timeout
-        while deadline > 0:
-            try:
-                done, _ = os.waitpid(self.pid, os.WNOHANG)
-            except ChildProcessError:
-                return
-            if done:
-                return
-            threading.Event().wait(0.01)
-            deadline -= 0.01
+        reap_child(self.pid, timeout)
+
+
+def reap_child(pid: int, timeout: float) -> None:
+    """Wait up to ``timeout`` (s) for child ``pid`` to exit, then kill it (SIGKILL); reap it either way."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
         try:
-            os.kill(self.pid, 9)
-            os.waitpid(self.pid, 0)
-        except (ProcessLookupError, ChildProcessError):
-            pass
+            done, _ = os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if done:
+            return
+        threading.Event().wait(0.01)
+    try:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    except (ProcessLookupError, ChildProcessError):
+        pass
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -225,4 +230,4 @@ class PlanningProcesses:
         self.stop.close()
 
 
-__all__ = ["PlanProcess", "PlanProcessClosed", "PlanProcessError", "PlanningProcesses", "serve"]
+__all__ = ["PlanProcess", "PlanProcessClosed", "PlanProcessError", "PlanningProcesses", "serve", "reap_child"]

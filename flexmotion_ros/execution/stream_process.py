@@ -47,6 +47,7 @@ import numpy as np
 
 from .command_stream import CommandStream, StreamHalt
 from .output import OutputSettings, OutputStream
+from .plan_process import reap_child
 from .realtime import SlackCollector, raise_threads
 from .timeline import HOLD, Segment
 
@@ -498,20 +499,7 @@ class StreamProcess:
                     os.close(fd)
                 except OSError:
                     pass
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            try:
-                done, _ = os.waitpid(self.pid, os.WNOHANG)
-            except ChildProcessError:
-                return
-            if done:
-                return
-            time.sleep(0.01)
-        try:
-            os.kill(self.pid, signal.SIGKILL)
-            os.waitpid(self.pid, 0)
-        except (ProcessLookupError, ChildProcessError):
-            pass
+        reap_child(self.pid, timeout)
 
 
 __all__ = [
