@@ -261,12 +261,18 @@ def test_a_time_limit_bounds_each_solve_not_the_solver_objects_lifetime():
     import time
 
     lp = random_lp(5, 12, 30, 200)
-    limit = 0.05  # each solve takes ~0.1 ms: far inside the limit even on a loaded machine
+    limit = 0.05  # each solve takes ~0.1 ms of CPU
     t0 = time.perf_counter()
-    verdicts = []
+    runs = []  # (verdict, the solve's own wall time)
     while time.perf_counter() - t0 < 10 * limit:  # the solves alone spend the limit many times over
-        verdicts.append(solve_lp(**lp, time_limit_s=limit, backend=LpBackend.HIGHSPY).status)
-    assert set(verdicts) == {LpStatus.OPTIMAL}, f"{verdicts.count(LpStatus.OPTIMAL)} of {len(verdicts)} optimal"
+        t = time.perf_counter()
+        status = solve_lp(**lp, time_limit_s=limit, backend=LpBackend.HIGHSPY).status
+        runs.append((status, time.perf_counter() - t))
+    # a solve descheduled past the limit on a loaded machine may rightly stop; one that did not must be optimal
+    # (the old code stopped every solve at once, in microseconds, once the limit was spent in total)
+    refused = [(s.value, f"{d * 1e3:.1f} ms") for s, d in runs if s is not LpStatus.OPTIMAL and d < limit]
+    assert not refused, f"{len(refused)} of {len(runs)} solves refused within the limit: {refused[:3]}"
+    assert sum(s is LpStatus.OPTIMAL for s, _ in runs) >= 2
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
