@@ -55,6 +55,7 @@ sys.path.insert(0, os.environ.get("FLEXMOTION_TREE") or os.path.join(os.path.dir
 from flexmotion_ros.core import ModalModel, MoveProblem, PlannerConfig, plan_time_optimal  # noqa: E402
 from flexmotion_ros.core.errors import InputError, UnreachableError  # noqa: E402
 from flexmotion_ros.core.friction.contact import FrictionSystem  # noqa: E402
+from flexmotion_ros.core.friction.structure import has_stick_arcs  # noqa: E402
 from flexmotion_ros.core.methods.table import plan_move  # noqa: E402
 from flexmotion_ros.core.simulation.exact import simulate, simulate_samples  # noqa: E402
 
@@ -231,6 +232,18 @@ def cross_check_infeasible(problem: MoveProblem, v_max: float, K0: int) -> str:
     return "not refuted up to 16 x the unlimited move"
 
 
+def stick_arc(cont, F: float) -> bool:
+    """Whether a sampled friction move holds the body on the way: stuck samples in its pattern, or ``|u| = F``
+    on two samples in a row (a boundary arc, ``v = 0`` while sliding is allowed); False for a bang-bang move."""
+    if getattr(cont, "sample_period", None) is None:
+        return False
+    pattern = getattr(cont, "sample_pattern", None)
+    if pattern is not None and np.any(np.asarray(pattern) == 0.0):
+        return True
+    u = np.asarray(cont.levels, float)
+    return bool(u.size) and has_stick_arcs(u, F, float(np.max(np.abs(u))))
+
+
 # ----------------------------------------------------------------- one case
 def reason_of(exc: BaseException) -> str:
     """The refusal's reason with numbers removed (a key for counting)."""
@@ -279,6 +292,7 @@ def run_case(method: str, seed: int, index: int) -> dict:
         cert = result.continuous.certificate
         out["cert_status"] = str(getattr(cert, "status", "passed" if cert.passed else "failed"))
         out["check"] = check_friction(problem, option["coulomb_force"], result)
+        out["stick"] = stick_arc(result.continuous, option["coulomb_force"])
     else:
         out["certified"] = bool(result.sampled.minimal)
         out["proof"] = str(result.info.get("lower_bound_proof", ""))
@@ -361,6 +375,11 @@ def summary(method: str, rows: list[dict]) -> list[str]:
         for r in plans:
             st[r.get("cert_status")] = st.get(r.get("cert_status"), 0) + 1
         lines.append("  certificate status: " + ", ".join(f"{k}: {v}" for k, v in st.items()))
+        cls = {}
+        for r in plans:
+            key = f"{r.get('cert_status')}{' (stick arc)' if r.get('stick') else ''}"
+            cls[key] = cls.get(key, 0) + 1
+        lines.append("  by class: " + ", ".join(f"{k}: {v}" for k, v in sorted(cls.items())))
     for kind in ("refused", "error", "skipped"):
         reasons: dict[str, list] = {}
         for r in by[kind]:

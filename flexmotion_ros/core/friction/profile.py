@@ -70,6 +70,9 @@ class FrictionProfile:
     method: str = "time_optimal_friction"
     #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
     sample_period: float | None = None
+    #: Velocity sign on every sample of an ``exact_sampled`` move (+1 / -1; 0 where the body is held: a stick
+    #: arc), the pattern its certificate (:mod:`.sampled_certificate`) is about; else None.
+    sample_pattern: np.ndarray | None = None
     #: An exact sampled move (``exact_sampled``) found on the way to an uncertified bang-bang one, or None:
     #: the zero-order-hold planner falls back on it when no sequence near this move passes its check.
     alternative: FrictionProfile | None = None
@@ -185,6 +188,7 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
         continuation_steps=steps,
         solve_time_s=time.perf_counter() - t0,
         sample_period=dt,
+        sample_pattern=np.asarray(sol.pattern, float).copy(),
     )
 
 

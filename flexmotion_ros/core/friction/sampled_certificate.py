@@ -187,6 +187,7 @@ def certify_sampled(lp: FrictionLP, pattern: np.ndarray, u: np.ndarray) -> Patte
         upper=np.full(K + 1, np.inf),
         method=LpMethod.DUAL_SIMPLEX,
         time_limit_s=1.0 + K / 500.0,
+        presolve=False,
         primal_feasibility_tolerance=1e-10,
         dual_feasibility_tolerance=1e-10,
     )
