@@ -55,7 +55,6 @@ sys.path.insert(0, os.environ.get("FLEXMOTION_TREE") or os.path.join(os.path.dir
 from flexmotion_ros.core import ModalModel, MoveProblem, PlannerConfig, plan_time_optimal  # noqa: E402
 from flexmotion_ros.core.errors import InputError, UnreachableError  # noqa: E402
 from flexmotion_ros.core.friction.contact import FrictionSystem  # noqa: E402
-from flexmotion_ros.core.friction.structure import has_stick_arcs  # noqa: E402
 from flexmotion_ros.core.methods.table import plan_move  # noqa: E402
 from flexmotion_ros.core.simulation.exact import simulate, simulate_samples  # noqa: E402
 
@@ -232,16 +231,17 @@ def cross_check_infeasible(problem: MoveProblem, v_max: float, K0: int) -> str:
     return "not refuted up to 16 x the unlimited move"
 
 
-def stick_arc(cont, F: float) -> bool:
-    """Whether a sampled friction move holds the body on the way: stuck samples in its pattern, or ``|u| = F``
-    on two samples in a row (a boundary arc, ``v = 0`` while sliding is allowed); False for a bang-bang move."""
-    if getattr(cont, "sample_period", None) is None:
+def stick_arc(problem: MoveProblem, F: float, cont) -> bool:
+    """Whether a sampled friction move holds the body on the way (a stick arc): in the event-located friction
+    simulation the rigid-body velocity is zero at two consecutive sample instants before the end (the body
+    at rest for a whole sample).  Read off the simulation, not the planner; False for a bang-bang move."""
+    h = getattr(cont, "sample_period", None)
+    if h is None or cont.duration == 0.0:
         return False
-    pattern = getattr(cont, "sample_pattern", None)
-    if pattern is not None and np.any(np.asarray(pattern) == 0.0):
-        return True
-    u = np.asarray(cont.levels, float)
-    return bool(u.size) and has_stick_arcs(u, F, float(np.max(np.abs(u))))
+    K = int(round(cont.duration / h))
+    v = FrictionSystem.for_model(problem.model, F).run(problem.x0, cont.input(), h * np.arange(K + 1)).states[:, 1]
+    rest = np.abs(v) <= 1e-12 * max(float(np.max(np.abs(v))), 1e-300)
+    return bool(np.any(rest[1:K] & rest[2 : K + 1]))
 
 
 # ----------------------------------------------------------------- one case
@@ -292,7 +292,7 @@ def run_case(method: str, seed: int, index: int) -> dict:
         cert = result.continuous.certificate
         out["cert_status"] = str(getattr(cert, "status", "passed" if cert.passed else "failed"))
         out["check"] = check_friction(problem, option["coulomb_force"], result)
-        out["stick"] = stick_arc(result.continuous, option["coulomb_force"])
+        out["stick"] = stick_arc(problem, option["coulomb_force"], result.continuous)
     else:
         out["certified"] = bool(result.sampled.minimal)
         out["proof"] = str(result.info.get("lower_bound_proof", ""))
@@ -439,7 +439,8 @@ def main() -> None:
                 if args.verbose or r["status"] in ("error", "hang") or r.get("check"):
                     print(
                         f"  [{m} {i}] {r['status']} {r.get('time_s', 0):.3f}s cpu {r.get('cpu_s', 0):.3f}s "
-                        f"T {r.get('duration_s', 0):.6g}s {r.get('cert_status', '')} {r.get('reason', '')} "
+                        f"T {r.get('duration_s', 0):.6g}s {r.get('cert_status', '')}{' stick_arc' if r.get('stick') else ''} "
+                        f"{r.get('reason', '')} "
                         f"{r.get('check') or ''}",
                         flush=True,
                     )
