@@ -27,7 +27,8 @@ HiGHS is not trusted.  The move passes if it satisfies every row of the LP
 and its peak is within :data:`PEAK_RTOL` of that bound.
 
 What is proved (:data:`SAMPLED_PATTERN_CLAIM`): no ``K``-sample sequence at
-this period with the same velocity-sign/stick pattern has a smaller peak.
+this period with the same velocity-sign/stick pattern has a peak smaller by
+more than :data:`PEAK_RTOL` (relative).
 Not proved: that the pattern or the count ``K`` is the best (both are
 searched), nor anything about the continuous-time optimum.
 """
@@ -42,8 +43,10 @@ from scipy.sparse import coo_matrix, csr_matrix, vstack
 from ..linear_program import LpMethod, LpStatus, solve_lp
 from .sampled_lp import FrictionLP
 
-#: The move's peak may exceed the proved lower bound on the least peak by this (relative).
-PEAK_RTOL = 1e-6
+#: The move's peak may exceed the proved lower bound on the least peak by this (relative): the returned
+#: commands are the LP's, corrected (least norm) to land exactly, which moves the peak by up to ~2e-5 of
+#: itself (seed-18 fuzz cases 45, 51, 92, 149: 2e-6 - 1.8e-5); the claim says "to within" this.
+PEAK_RTOL = 1e-4
 #: A row of the pattern's LP holds if violated by at most this (relative to the row's scale).
 ROW_RTOL = 1e-7
 #: Sampled moves with more samples are not certified (the LP's dense velocity rows grow as ``K^2``).
@@ -52,7 +55,8 @@ MAX_SAMPLES = 1500
 SAMPLED_PATTERN_CLAIM = (
     "discrete-time Pontryagin conditions of the sampled friction move for its velocity-sign/stick pattern "
     "(LP duality, the dual checked in numpy): no sequence of the same number of samples at this period with "
-    "this pattern (sliding signs, stick arcs held with |u| <= F) has a smaller peak; the pattern and the "
+    "this pattern (sliding signs, stick arcs held with |u| <= F) has a peak smaller by more than 1e-4 of it; the "
+    "pattern and the "
     "count are searched, not proved; no continuous-time optimality is claimed; lower_bound_s is a proved bound"
 )
 
