@@ -203,7 +203,9 @@ def certify_sampled(lp: FrictionLP, pattern: np.ndarray, u: np.ndarray) -> Patte
         p = np.maximum(-np.asarray(res.ub_marginals, float), 0.0)
         q = -np.asarray(res.eq_marginals, float)
         r = cost + A_ub.T @ p + A_eq.T @ q
-        rho = float(np.sum(np.abs(r)))
+        # r is itself rounded: add a bound on the rounding of each of its entries (K + 1 terms of each row sum)
+        rounding = 1e-15 * (K + 1) * (1.0 + np.abs(A_ub.T) @ p + np.abs(A_eq.T) @ np.abs(q))
+        rho = float(np.sum(np.abs(r) + rounding))
         dual = -float(p @ b_ub) - float(q @ b_eq)
         sums = float(np.abs(p) @ np.abs(b_ub) + np.abs(q) @ np.abs(b_eq))
         dual -= 1e-14 * K * sums  # rounding of the sums themselves
