@@ -231,6 +231,19 @@ def cross_check_infeasible(problem: MoveProblem, v_max: float, K0: int) -> str:
     return "not refuted up to 16 x the unlimited move"
 
 
+def stick_arc(problem: MoveProblem, F: float, cont) -> bool:
+    """Whether a sampled friction move holds the body on the way (a stick arc): in the event-located friction
+    simulation the rigid-body velocity is zero at two consecutive sample instants before the end (the body
+    at rest for a whole sample).  Read off the simulation, not the planner; False for a bang-bang move."""
+    h = getattr(cont, "sample_period", None)
+    if h is None or cont.duration == 0.0:
+        return False
+    K = int(round(cont.duration / h))
+    v = FrictionSystem.for_model(problem.model, F).run(problem.x0, cont.input(), h * np.arange(K + 1)).states[:, 1]
+    rest = np.abs(v) <= 1e-12 * max(float(np.max(np.abs(v))), 1e-300)
+    return bool(np.any(rest[1:K] & rest[2 : K + 1]))
+
+
 # ----------------------------------------------------------------- one case
 def reason_of(exc: BaseException) -> str:
     """The refusal's reason with numbers removed (a key for counting)."""
@@ -279,6 +292,7 @@ def run_case(method: str, seed: int, index: int) -> dict:
         cert = result.continuous.certificate
         out["cert_status"] = str(getattr(cert, "status", "passed" if cert.passed else "failed"))
         out["check"] = check_friction(problem, option["coulomb_force"], result)
+        out["stick"] = stick_arc(problem, option["coulomb_force"], result.continuous)
     else:
         out["certified"] = bool(result.sampled.minimal)
         out["proof"] = str(result.info.get("lower_bound_proof", ""))
@@ -361,6 +375,11 @@ def summary(method: str, rows: list[dict]) -> list[str]:
         for r in plans:
             st[r.get("cert_status")] = st.get(r.get("cert_status"), 0) + 1
         lines.append("  certificate status: " + ", ".join(f"{k}: {v}" for k, v in st.items()))
+        cls = {}
+        for r in plans:
+            key = f"{r.get('cert_status')}{' (stick arc)' if r.get('stick') else ''}"
+            cls[key] = cls.get(key, 0) + 1
+        lines.append("  by class: " + ", ".join(f"{k}: {v}" for k, v in sorted(cls.items())))
     for kind in ("refused", "error", "skipped"):
         reasons: dict[str, list] = {}
         for r in by[kind]:
@@ -420,7 +439,8 @@ def main() -> None:
                 if args.verbose or r["status"] in ("error", "hang") or r.get("check"):
                     print(
                         f"  [{m} {i}] {r['status']} {r.get('time_s', 0):.3f}s cpu {r.get('cpu_s', 0):.3f}s "
-                        f"T {r.get('duration_s', 0):.6g}s {r.get('cert_status', '')} {r.get('reason', '')} "
+                        f"T {r.get('duration_s', 0):.6g}s {r.get('cert_status', '')}{' stick_arc' if r.get('stick') else ''} "
+                        f"{r.get('reason', '')} "
                         f"{r.get('check') or ''}",
                         flush=True,
                     )

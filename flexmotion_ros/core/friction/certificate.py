@@ -46,11 +46,21 @@ class FrictionStatus(str, Enum):
     NOT_EXTREMAL = "exact_not_extremal"
     #: An exact piecewise-constant move (the fewest-sample LP at a coarse rate); no extremal was found.
     SAMPLED = "exact_sampled"
+    #: An exact sampled move (often with stick arcs) whose discrete-time Pontryagin conditions for its own
+    #: velocity-sign/stick pattern were checked by LP duality (:mod:`.sampled_certificate`): the least peak
+    #: for that pattern at its sample count.  Weaker than ``EXTREMAL``: the pattern and the count are
+    #: searched, nothing continuous is claimed, so :attr:`FrictionCertificate.passed` stays False.
+    SAMPLED_PATTERN = "exact_sampled_pattern_optimal"
     #: Already at rest at the target: nothing to do.
     AT_REST = "at_rest"
 
     def __str__(self) -> str:
         return str(self.value)
+
+    @property
+    def sampled(self) -> bool:
+        """Whether the move is a sampled one (``SAMPLED`` or ``SAMPLED_PATTERN``: levels held per sample)."""
+        return self in (FrictionStatus.SAMPLED, FrictionStatus.SAMPLED_PATTERN)
 
 
 #: What an ``exact_sampled`` move claims.

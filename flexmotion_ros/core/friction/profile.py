@@ -21,6 +21,7 @@ from ..tolerances import FINAL_STATE_RTOL
 from .certificate import SAMPLED_CLAIM, FrictionCertificate, FrictionStatus, certify_friction
 from .contact import FrictionSystem
 from .extremal import Extremal
+from .sampled_certificate import SAMPLED_PATTERN_CLAIM, certify_sampled
 from .sampled_lp import FrictionLP
 
 
@@ -69,6 +70,9 @@ class FrictionProfile:
     method: str = "time_optimal_friction"
     #: Sample period (s) of an ``exact_sampled`` move (its levels are held this long each), else None.
     sample_period: float | None = None
+    #: Velocity sign on every sample of an ``exact_sampled`` move (+1 / -1; 0 where the body is held: a stick
+    #: arc), the pattern its certificate (:mod:`.sampled_certificate`) is about; else None.
+    sample_pattern: np.ndarray | None = None
     #: An exact sampled move (``exact_sampled``) found on the way to an uncertified bang-bang one, or None:
     #: the zero-order-hold planner falls back on it when no sequence near this move passes its check.
     alternative: FrictionProfile | None = None
@@ -166,15 +170,7 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
     u, xT, run, rel, dev = checked
     dt, K = lp.dt, sol.u.size
     T = K * dt
-    cert = FrictionCertificate.unproved(
-        costate_final=np.zeros(problem.model.n_states),
-        message=(
-            f"no extremal found: this is the fewest-sample move at {1.0 / dt:.4g} Hz for its velocity-sign "
-            f"pattern (exact, checked; not proved optimal)"
-        ),
-        status=FrictionStatus.SAMPLED,
-        claim=SAMPLED_CLAIM,
-    )
+    cert = sampled_certificate(lp, sol.pattern, u)
     reversals = reversal_times(run, T)
     return FrictionProfile(
         problem=problem,
@@ -192,6 +188,37 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
         continuation_steps=steps,
         solve_time_s=time.perf_counter() - t0,
         sample_period=dt,
+        sample_pattern=np.asarray(sol.pattern, float).copy(),
+    )
+
+
+def sampled_certificate(lp: FrictionLP, pattern: np.ndarray, u: np.ndarray) -> FrictionCertificate:
+    """The certificate of an exact sampled move: ``SAMPLED_PATTERN`` if its pattern's discrete-time Pontryagin
+    conditions hold (:func:`~.sampled_certificate.certify_sampled`), else ``SAMPLED``; never ``passed``."""
+    pc = certify_sampled(lp, pattern, u)
+    n = lp.problem.model.n_states
+    lam = np.zeros(n)
+    if pc.costate_final.size == lp.I.size:
+        lam[lp.I] = pc.costate_final
+    where = f"{u.size} samples at {1.0 / lp.dt:.4g} Hz, {pc.stuck_samples} of them stuck (stick arcs)"
+    if pc.passed:
+        return FrictionCertificate.unproved(
+            costate_final=lam,
+            message=(
+                f"no continuous extremal: the least-peak sequence of its velocity-sign/stick pattern, {where} "
+                f"(peak {pc.peak:.9g} N, proved bound {pc.peak_lower_bound:.9g} N; exact, checked)"
+            ),
+            status=FrictionStatus.SAMPLED_PATTERN,
+            claim=SAMPLED_PATTERN_CLAIM,
+        )
+    return FrictionCertificate.unproved(
+        costate_final=lam,
+        message=(
+            f"no extremal found: the fewest samples found for its velocity-sign pattern, {where} (exact, "
+            f"checked; not proved optimal: {pc.message})"
+        ),
+        status=FrictionStatus.SAMPLED,
+        claim=SAMPLED_CLAIM,
     )
 
 

@@ -45,6 +45,10 @@ from .contact import ClosedForm
 #: stall for minutes on a degenerate windowed LP; such an LP counts as "no solution" (wider windows,
 #: or another count, are tried), never as a verdict.
 LP_TIME_LIMIT_S = 1.0
+#: HiGHS's presolve on the friction LPs.  Off: these LPs have nothing for it to remove (every sign condition
+#: is a bound, the arrival rows are dense) and it cost a third of the solve: the 324 LPs of seed-18 fuzz
+#: cases 0, 1, 3, 4, 6, 8, 10, 13 took 0.91-1.08 s CPU without it, 1.38 s with it, same optima (2026-12-05).
+PRESOLVE = False
 #: Rounds of sign-row generation in a windowed LP.
 SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
@@ -232,6 +236,7 @@ class FrictionLP:
             # 1e-10: a stick arc rides v = 0, HiGHS's default 1e-7 lets it creep; the time limit grows
             # with the size (a fine structure LP of 2,000 samples takes about 1 s on a loaded machine)
             time_limit_s=LP_TIME_LIMIT_S * (1.0 + K / 500.0),
+            presolve=PRESOLVE,
             **HIGHS_OPTIONS,
         )
         if res.status is not LpStatus.OPTIMAL or res.x[imu] <= 0.0:
@@ -292,6 +297,7 @@ class FrictionLP:
                 upper=upper,
                 method=LpMethod.DUAL_SIMPLEX,
                 time_limit_s=LP_TIME_LIMIT_S,
+                presolve=PRESOLVE,
                 **HIGHS_OPTIONS,
             )
             if res.status is not LpStatus.OPTIMAL or res.x[-1] <= 0.0:

@@ -33,7 +33,10 @@ extremal is *not* proved globally optimal; the rigid-body friction optimum is
 reported as a proved lower bound (c = 0, from rest).  When no extremal is
 found (e.g. the optimum rests on the way, ``|u| = F`` holding the body while
 the modes are steered: a stick arc, outside the bang-bang conditions), the
-exact sampled move is returned with status ``exact_sampled``; an exact
+exact sampled move is returned: with status ``exact_sampled_pattern_optimal``
+when the discrete-time Pontryagin conditions of its own velocity-sign/stick
+pattern hold (a dual of its least-peak LP, checked: :mod:`.sampled_certificate`;
+a stick arc is a boundary arc ``v = 0`` there), else ``exact_sampled``; an exact
 bang-bang move whose check failed has status ``exact_not_extremal``.  The
 status enum and message say exactly what was proved.  The zero-order-hold
 version is :mod:`.zoh`.

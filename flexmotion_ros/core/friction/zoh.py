@@ -24,7 +24,6 @@ from ..results import SampledProfile
 from ..simulation.exact import PiecewiseConstant
 from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL
-from .certificate import FrictionStatus
 from .contact import FrictionSystem, simulate_coulomb
 from .profile import FrictionProfile
 from .sampled_lp import FrictionLP
@@ -69,7 +68,7 @@ def _directions(check: FrictionSystem, problem: MoveProblem, continuous: Frictio
 def _held_samples(continuous: FrictionProfile, dt: float) -> np.ndarray | None:
     """The commands at period ``dt`` of an ``exact_sampled`` move whose period is a whole multiple of ``dt``."""
     h = continuous.sample_period
-    if continuous.certificate.status != FrictionStatus.SAMPLED or h is None:
+    if not continuous.certificate.status.sampled or h is None:
         return None
     m = round(h / dt)
     if m < 1 or abs(m * dt - h) > 1e-9 * h:
@@ -142,7 +141,7 @@ def plan_time_optimal_friction_zoh(
     check = FrictionSystem.for_model(model, F)
     lp = FrictionLP(problem, F, dt)
     xf, I = lp.xf, lp.I
-    bang = continuous.certificate.status != FrictionStatus.SAMPLED  # levels +-u_max: windows make sense
+    bang = not continuous.certificate.status.sampled  # levels +-u_max: windows make sense
     directions: list = []  # (first direction, turns) of the continuous move: an exact run, made when first needed
     lb = continuous.lower_bound
     lower = math.ceil(lb / dt * (1.0 - 1e-12)) if lb is not None else 0
@@ -253,7 +252,7 @@ def plan_time_optimal_friction_zoh(
         # whole number of periods (checked below like any other)
         u = alt_u
         spent = time.perf_counter() - t0 > budget_s  # past the budget it stops (one line), as ever
-        if u is None and not spent and continuous.certificate.status != FrictionStatus.SAMPLED:
+        if u is None and not spent and not continuous.certificate.status.sampled:
             # no exact sampled move known (the continuation gave the continuous move at once): the
             # structure search at the rate finds one (fuzz case 362 of seed 18: a certified 73 s move of a
             # damped rigid body whose windowed LPs found no sequence up to 4 x its samples)
