@@ -192,3 +192,16 @@ def test_the_continuous_robust_solver_is_bounded_and_the_method_falls_back_at_a_
     s = result.sampled
     assert s.samples > 0 and np.max(np.abs(s.commands)) <= 2.0
     assert np.max(np.abs(s.states[-1] - model.rest_state(1.0))) <= 1e-8 * np.max(np.abs(s.states))
+
+
+def test_switching_on_rows_of_a_cached_grid_equals_the_direct_evaluation():
+    model = ModalModel(b0=0.8, c=-0.1, omega=(1.1, 4.0, 13.0), zeta=(0.03, 0.1, 0.2), b=(1.0, -0.5, 0.7))
+    R = RobustModalResponse(model, 2, True, horizon=10.0)
+    grid = np.linspace(0.0, 10.0, 400)
+    grid.flags.writeable = False
+    nu = np.random.default_rng(3).normal(size=R.n)
+    rows = np.arange(5, 400, 7)
+    for _ in range(2):  # the second time from the cached exponentials
+        a = np.array(R.switching(nu, grid, order=3, rows=rows))
+        b = np.array(R.switching(nu, grid[rows].copy(), order=3))
+        assert np.allclose(a, b, rtol=1e-13, atol=1e-13 * np.max(np.abs(b)))
