@@ -32,8 +32,9 @@ __all__ = ["MAX_ORDER", "WORK_BUDGET", "RobustModalResponse", "check_order", "pl
 
 # ------------------------------------------------------------------ planner
 #: Bound on the continuous robust solver's switching-function work (points x orders x modes,
-#: about 1.2e-8 s CPU each): the slowest plans of fuzz seed 15 cases 0-324 spent 8e8 (case 257,
-#: 8 modes, 11 s CPU); case 325 (8 modes, moving start) spent 3.8e9 (45 s) and then missed.
+#: about 1.2e-8 s CPU each): the 14 slowest plans of fuzz seed 15 cases 0-361 (by CPU) spent at
+#: most 8e8 (case 257, 8 modes, 11 s CPU); case 325 (8 modes, moving start) spent 3.8e9 (45 s)
+#: and then missed.
 WORK_BUDGET = 1e9
 
 
