@@ -47,7 +47,10 @@ def main() -> None:
     ap.add_argument("--modes-at-most", type=int, default=None)
     args = ap.parse_args()
     signal.signal(signal.SIGPROF, fuzz._alarm)
-    signal.ITIMER_REAL = signal.ITIMER_PROF  # run_case arms "ITIMER_REAL": the guard on CPU time here
+    # run_case arms fuzz.TIMER[0]: the guard on this process's CPU time (ITIMER_PROF, SIGPROF).  Patching
+    # signal.ITIMER_REAL (as before) did nothing, TIMER having read it at import: the guard stayed on the
+    # wall clock and, SIGALRM having no handler here, its first expiry killed the whole run.
+    fuzz.TIMER[0] = signal.ITIMER_PROF
     indices = [int(i) for i in args.only.split(",")] if args.only else range(args.first, args.first + args.cases)
     for i in indices:
         case = fuzz.draw_case(args.seed, i, args.max_modes)

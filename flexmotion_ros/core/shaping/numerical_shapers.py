@@ -35,8 +35,16 @@ def impulse_vibration(times, amplitudes, omega, zeta) -> np.ndarray:
     a = np.asarray(amplitudes, dtype=float)
     w = np.asarray(omega, dtype=float)[..., None]
     z = np.asarray(zeta, dtype=float)[..., None]
-    expo = w * (z * (t - t[-1]) + 1j * np.sqrt(1.0 - z * z) * t)
-    return np.abs(np.sum(a * np.exp(expo), axis=-1))
+    total = 0.0
+    for k in range(0, t.size, IMPULSE_CHUNK):  # a million impulses x 8 modes: chunks bound the memory
+        tk = t[k : k + IMPULSE_CHUNK]
+        expo = w * (z * (tk - t[-1]) + 1j * np.sqrt(1.0 - z * z) * tk)
+        total = total + np.sum(a[k : k + IMPULSE_CHUNK] * np.exp(expo), axis=-1)
+    return np.abs(total)
+
+
+#: Impulses per chunk of :func:`impulse_vibration` (bounds its temporaries to a few MB per mode).
+IMPULSE_CHUNK = 65536
 
 
 # ---------------------------------------------------- undamped closed forms

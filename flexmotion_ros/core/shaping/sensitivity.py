@@ -36,7 +36,8 @@ from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, modal_amplitudes, simulate
 from ..tolerances import TOLERANCE_SLACK
 from .numerical_shapers import impulse_vibration
-from .shapers import Shaper
+from .shaped_command import ShapedCommand, factored_vibration
+from .shaper import Shaper
 
 
 @dataclass(frozen=True)
@@ -187,19 +188,39 @@ def ratio_vibration(times, amplitudes, omega, zeta, ratios) -> np.ndarray:
 def shaper_insensitivity(shaper: Shaper, tolerance: float = 0.05, mode: int = 0) -> Insensitivity:
     """Insensitivity of a shaper to the frequency of one mode (Singhose's figure of merit)."""
     w, z = shaper.omega[mode], shaper.zeta[mode]
-    return insensitivity(lambda r: ratio_vibration(shaper.times, shaper.amplitudes, w, z, r)[:, 0], tolerance)
+
+    def V(r):  # a convolution's V is the product of its factors' (each a few impulses)
+        out = 1.0
+        for t, a in shaper.parts():
+            out = out * ratio_vibration(t, a, w, z, r)[:, 0]
+        return out
+
+    return insensitivity(V, tolerance)
 
 
 def command_insensitivity(
     u: PiecewiseConstant, model: ModalModel, tolerance: float = 0.05, u_ref: float | None = None
 ) -> Insensitivity:
-    """Insensitivity of a command to a common scaling of all modal frequencies (worst mode)."""
+    """Insensitivity of a command to a common scaling of all modal frequencies (worst mode).
+
+    A :class:`~flexmotion_ros.core.shaping.shaped_command.ShapedCommand` is
+    evaluated by its factors (:func:`~.shaped_command.factored_vibration`:
+    the same figure up to rounding, at the cost of the rigid command's and the
+    factors' impulses instead of their product, ~10^6 for 8 modes).
+    """
     if not model.n_modes:
         return Insensitivity(tolerance, 0.0, np.inf)
 
     ref = u.max_abs() if u_ref is None else float(u_ref)
     if not ref > 0.0:
         return insensitivity(lambda r: np.zeros(np.size(r)), tolerance)
+    if isinstance(u, ShapedCommand) and u.rigid is not None:  # by its factors: each a few impulses
+        w, z = np.asarray(model.omega, dtype=float), np.asarray(model.zeta, dtype=float)
+
+        def V(r):
+            return np.max(factored_vibration(u, np.asarray(r, dtype=float)[:, None] * w, z, ref), axis=-1)
+
+        return insensitivity(V, tolerance)
     t, a = command_impulses(u)
 
     def V(r):

@@ -49,14 +49,14 @@ from ..sampled.lp_tools import least_norm_correction, sample_vectors
 from ..simulation.exact import (
     PiecewiseConstant,
     modal_amplitudes,
-    simulate,
     simulate_samples,
 )
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import FINAL_STATE_RTOL, RESIDUAL_RTOL
 from .sensitivity import command_vibration
-from .shapers import Shaper
+from .shaped_command import ShapedCommand, exact_end
+from .shaper import Shaper
 
 MAX_EXTRA_SAMPLES = 4
 
@@ -64,22 +64,23 @@ MAX_EXTRA_SAMPLES = 4
 def shape(u: PiecewiseConstant, shaper: Shaper) -> PiecewiseConstant:
     """Exact convolution of a piecewise-constant command with a shaper."""
     T = u.duration + shaper.duration
-    breaks = np.unique((u.breaks[:, None] + shaper.times[None, :]).ravel())
-    # drop breaks closer than rounding (coincident switches of shifted copies)
-    keep = np.concatenate([[True], np.diff(breaks) > 1e-12 * max(T, 1e-300)])
-    breaks = breaks[keep]
-    breaks[-1] = T
-    mids = 0.5 * (breaks[:-1] + breaks[1:])
     # sum_i A_i u(t - t_i) as a sum of steps: u jumps by J_k at its breaks b_k, so the shaped
     # command jumps by A_i J_k at t_i + b_k.  The running sum of the sorted steps (extended
     # precision) replaces one evaluation of u per impulse at every piece: 6,561 impulses (an
-    # 8-mode ZVD) on 13,000 pieces were 0.6 s, now a sort.
+    # 8-mode ZVD) on 13,000 pieces were 0.6 s, now a sort (one: the breaks are the sorted step
+    # times, a second sort by np.unique was a third of an 8-mode UM-ZVD plan).
     jumps = np.diff(np.concatenate([[0.0], u.levels, [0.0]]))
     at = (shaper.times[:, None] + u.breaks[None, :]).ravel()
     weight = (np.asarray(shaper.amplitudes, float)[:, None] * jumps[None, :]).ravel()
     order = np.argsort(at, kind="stable")
+    at_sorted = at[order]
+    # the distinct step times, less those closer than rounding to the previous distinct one
+    # (coincident switches of shifted copies)
+    breaks = at_sorted[np.concatenate([[True], np.diff(at_sorted) > 1e-12 * max(T, 1e-300)])]
+    breaks[-1] = T
+    mids = 0.5 * (breaks[:-1] + breaks[1:])
     running = np.cumsum(weight[order].astype(np.longdouble))
-    count = np.searchsorted(at[order], mids, side="right")
+    count = np.searchsorted(at_sorted, mids, side="right")
     levels = np.where(count > 0, running[np.maximum(count - 1, 0)], 0.0).astype(float)
     return PiecewiseConstant(breaks, levels)
 
@@ -266,13 +267,12 @@ def plan_shaped(problem: MoveProblem, shaper: Shaper, method: str = "shaped") ->
         return c.max_abs(), (r, c)
 
     level, (rigid, command) = largest_level(shaped_at, um, um / shaper.abs_sum)
-    command = PiecewiseConstant(command.breaks, np.clip(command.levels, -um, um))
+    command = ShapedCommand(command.breaks, np.clip(command.levels, -um, um), rigid, shaper.parts())
 
-    states = simulate(model, problem.x0, command)
-    xT = states[-1]
+    xT, rigid_states = exact_end(model, problem.x0, command)  # a long command: by its factors
     target = problem.target
     rigid_err = np.array([0.0 if target is None else xT[0] - target, xT[1]])
-    shifted = states[:, :2] - np.array([target if target is not None else 0.0, 0.0])
+    shifted = rigid_states - np.array([target if target is not None else 0.0, 0.0])
     scale = np.max(np.abs(shifted), axis=0)
     # break times carry rounding ~eps T, so velocity errors ~eps T a persist between impulses and the
     # position integrates them over the move: its scale includes max|v| T (matters when T_shaper >> T_rigid)

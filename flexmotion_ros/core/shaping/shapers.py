@@ -44,105 +44,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError, SolverError
 from ..linear_program import LpStatus, solve_lp
-from .numerical_shapers import ei_unit, impulse_vibration, negative_unit
-
-
-@dataclass(frozen=True)
-class Shaper:
-    """An impulse sequence.
-
-    Attributes
-    ----------
-    name : str
-    times : ndarray
-        Impulse times (s), ``times[0] = 0``, increasing.
-    amplitudes : ndarray
-        Impulse amplitudes (dimensionless), summing to 1.
-    omega, zeta : tuple of float
-        Design frequencies (rad/s) and damping ratios, one per mode.
-    exact : bool
-        Closed form (True) or numerically solved constraints (False).
-    params : dict
-        Design parameters (``tolerance``, ``negative_amplitude``, ...).
-    """
-
-    name: str
-    times: np.ndarray
-    amplitudes: np.ndarray
-    omega: tuple[float, ...]
-    zeta: tuple[float, ...]
-    exact: bool = True
-    params: dict = field(default_factory=dict)
-
-    @property
-    def duration(self) -> float:
-        """Time of the last impulse (s): the delay the shaper adds."""
-        return float(self.times[-1])
-
-    @property
-    def positive(self) -> bool:
-        """All amplitudes >= 0: shaping never raises the peak of a command."""
-        return bool(np.all(self.amplitudes >= 0.0))
-
-    @property
-    def abs_sum(self) -> float:
-        """``sum |A_i|``: the worst-case peak gain on a bounded command."""
-        return float(np.sum(np.abs(self.amplitudes)))
-
-    def vibration(self, omega, zeta) -> np.ndarray:
-        """Residual vibration ``V`` (fraction, not percent) for modes ``(omega, zeta)`` (broadcast)."""
-        return impulse_vibration(self.times, self.amplitudes, omega, zeta)
-
-    def convolve(self, other: Shaper) -> Shaper:
-        """The shaper that applies ``self`` then ``other`` (impulses at equal times merged)."""
-        t = (self.times[:, None] + other.times[None, :]).ravel()
-        a = (self.amplitudes[:, None] * other.amplitudes[None, :]).ravel()
-        return _merged(
-            f"{self.name}*{other.name}",
-            t,
-            a,
-            self.omega + other.omega,
-            self.zeta + other.zeta,
-            self.exact and other.exact,
-            {**self.params, **other.params},
-        )
-
-    def to_dict(self) -> dict:
-        """JSON-friendly description."""
-        return {
-            "name": self.name,
-            "times": [float(v) for v in self.times],
-            "amplitudes": [float(v) for v in self.amplitudes],
-            "duration": self.duration,
-            "omega": list(self.omega),
-            "zeta": list(self.zeta),
-            "exact": self.exact,
-            "positive": self.positive,
-            **{k: v for k, v in self.params.items()},
-        }
-
-
-def _merged(name, t, a, omega, zeta, exact, params) -> Shaper:
-    order = np.argsort(t, kind="stable")
-    t, a = t[order], a[order]
-    tol = 1e-12 * max(float(t[-1]), 1e-300)
-    keep_t, keep_a = [t[0]], [a[0]]
-    for ti, ai in zip(t[1:], a[1:]):
-        if ti - keep_t[-1] <= tol:
-            keep_a[-1] += ai
-        else:
-            keep_t.append(ti)
-            keep_a.append(ai)
-    ta, aa = np.array(keep_t), np.array(keep_a)
-    nz = aa != 0.0
-    nz[0] = True
-    return Shaper(name, ta[nz] - ta[0], aa[nz], tuple(omega), tuple(zeta), exact, params)
+from .numerical_shapers import ei_unit, negative_unit
+from .shaper import Shaper
 
 
 # --------------------------------------------------------------- unit designs
@@ -362,7 +271,9 @@ def design(
         t, a, exact = _unit(name, z, tolerance, negative_amplitude)
         s = Shaper(name, t / w, a, (w,), (z,), exact, params)
         out = s if out is None else out.convolve(s)
-    return out if len(modes) == 1 else Shaper(name, out.times, out.amplitudes, out.omega, out.zeta, out.exact, params)
+    if len(modes) == 1:
+        return out
+    return Shaper(name, out.times, out.amplitudes, out.omega, out.zeta, out.exact, params, out.factors)
 
 
 def multi_mode_direct(omega, zeta, derivatives: int = 0, points_per_period: int = 400) -> Shaper:

@@ -169,3 +169,39 @@ def test_order_validation():
         with pytest.raises(FlexmotionError) as e:
             check_order(bad)
         assert e.value.parameter == "robust_order"
+
+
+def test_the_continuous_robust_solver_is_bounded_and_the_method_falls_back_at_a_rate(monkeypatch):
+    """Fuzz seed 15 case 325 (8 modes, moving start): the continuous robust solver spent 45 s CPU
+    (3.8e9 units of switching-function work) and then missed; it now stops at ``WORK_BUDGET``
+    with a refusal naming it, and at a rate the method plans from the linear programs alone.
+    Here the budget is lowered so that a 3-mode move meets it at once."""
+    import flexmotion_ros.core.time_optimal.robust as robust_module
+    from flexmotion_ros.core.config import PlannerConfig
+    from flexmotion_ros.core.errors import SolverError
+    from flexmotion_ros.core.methods.table import plan_move
+
+    model = ModalModel(b0=1.0, c=0.0, omega=(3.0, 9.0, 21.0), zeta=(0.02, 0.05, 0.1), b=(1.0, -0.7, 0.4))
+    problem = rest_to_rest(model, 2.0, 1.0)
+    monkeypatch.setattr(robust_module, "WORK_BUDGET", 1e4)
+    with pytest.raises(SolverError, match="work budget"):
+        plan_robust_time_optimal(problem, 1)
+    config = PlannerConfig(model=model, u_max=2.0, method="robust_time_optimal", options={})
+    result = plan_move(config, problem, 100.0)
+    assert "work budget" in result.info["continuous_note"]
+    s = result.sampled
+    assert s.samples > 0 and np.max(np.abs(s.commands)) <= 2.0
+    assert np.max(np.abs(s.states[-1] - model.rest_state(1.0))) <= 1e-8 * np.max(np.abs(s.states))
+
+
+def test_switching_on_rows_of_a_cached_grid_equals_the_direct_evaluation():
+    model = ModalModel(b0=0.8, c=-0.1, omega=(1.1, 4.0, 13.0), zeta=(0.03, 0.1, 0.2), b=(1.0, -0.5, 0.7))
+    R = RobustModalResponse(model, 2, True, horizon=10.0)
+    grid = np.linspace(0.0, 10.0, 400)
+    grid.flags.writeable = False
+    nu = np.random.default_rng(3).normal(size=R.n)
+    rows = np.arange(5, 400, 7)
+    for _ in range(2):  # the second time from the cached exponentials
+        a = np.array(R.switching(nu, grid, order=3, rows=rows))
+        b = np.array(R.switching(nu, grid[rows].copy(), order=3))
+        assert np.allclose(a, b, rtol=1e-13, atol=1e-13 * np.max(np.abs(b)))
