@@ -49,6 +49,7 @@ from .command_stream import CommandStream, StreamHalt
 from .output import OutputSettings, OutputStream
 from .plan_process import reap_child
 from .realtime import SlackCollector, raise_threads
+from .stream_trace import StreamTrace
 from .timeline import HOLD, Segment
 
 #: Rows kept in the shared sample ring (65 s at 1 kHz): how far the parent may fall behind.
@@ -228,10 +229,13 @@ class _RowWriter:
     progress: SharedProgress
     sent_ns: int  # system time (ns) just before the last publish
     pending: list[float]  # the segments that started / finished at the sample being sent
+    trace: StreamTrace | None  # the benchmarks' per-sample trace (stream_trace.TRACE_ENV)
 
     def step(self):
         out = super().step()  # type: ignore[misc]
         if out is not None and out.value is not None:
+            if self.trace is not None:
+                self.trace.step_done(out.sample, out.deadline, out.time)
             self.progress.write_row(
                 out.sample,
                 out.time,
@@ -278,6 +282,7 @@ class _Child:
         self.matched: Callable[[], int] = lambda: 0
         self.close_output: Callable[[], None] = lambda: None
         self.collector = SlackCollector()
+        self.trace = StreamTrace.from_environment()
 
     def configure(self, cfg: ChildSettings) -> None:
         self.end("reconfigured")
@@ -290,6 +295,8 @@ class _Child:
             stream.sent_ns = time.time_ns()  # just before DDS stamps it (the feedback pairs readings with it)
             row = [float(value)] * cfg.inputs if np.ndim(value) == 0 else [float(v) for v in np.ravel(value)]
             publish(row)
+            if trace is not None:
+                trace.published(stream.sent_ns)
 
         def on_start(seg: Segment) -> None:
             stream.pending[0] = float(seg.info)
@@ -305,12 +312,19 @@ class _Child:
 
         matched = self.matched
         progress = self.progress
+        trace = self.trace
         collector = self.collector
 
         def after_sample(slack: float) -> None:
+            t0 = time.monotonic() if trace is not None else 0.0
             if progress.written % MATCH_SAMPLES == 0:
                 progress.set_matched(matched())
+            if trace is None:
+                collector(slack)
+                return
+            t1, before = time.monotonic(), list(collector.collections)
             collector(slack)
+            trace.slack(t0, t1, next((g for g in range(3) if collector.collections[g] != before[g]), -1))
 
         def on_idle() -> None:
             progress.set_matched(matched())
@@ -340,6 +354,7 @@ class _Child:
         stream.progress = self.progress
         stream.pending = [NO_SEGMENT, NO_SEGMENT]
         stream.sent_ns = 0
+        stream.trace = trace
         self.stream = stream
 
     def handle(self, op: str, args: tuple) -> Any:
@@ -376,6 +391,8 @@ class _Child:
             halt = self.stream.stop(why)
             self.collector.disable()
             self.stream = None
+            if self.trace is not None:
+                self.trace.save()
         self.close_output()
         self.close_output = lambda: None
         self.matched = lambda: 0
