@@ -36,6 +36,8 @@ from flexmotion_ros.execution.stream_trace import (  # noqa: E402
     MATCHED_END,
     PUBLISH_NS,
     PUBLISHED,
+    RUN_DELAY_AFTER,
+    RUN_DELAY_BEFORE,
     SLACK_START,
     STEP_END,
     WOKE,
@@ -82,6 +84,9 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int) -> list[dic
         callbacks = a[SLACK_START] - a[PUBLISHED] if a[SLACK_START] else 0.0
         matched = a[MATCHED_END] - a[SLACK_START] if a[SLACK_START] else 0.0
         collect = a[STEP_END] - a[MATCHED_END] if a[SLACK_START] else 0.0
+        # waiting on a run queue (the CPU taken by another thread) vs blocked (a lock: the interpreter's, DDS's)
+        queued_wake = (b[RUN_DELAY_BEFORE] - a[RUN_DELAY_AFTER]) * 1e-9
+        queued_publish = (a[RUN_DELAY_AFTER] - a[RUN_DELAY_BEFORE]) * 1e-9
         if own_ms * 1e6 <= threshold_ns and publish <= period:
             cause = "transport"
         elif publish > period and own_ms * 1e6 <= threshold_ns:
@@ -101,6 +106,9 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int) -> list[dic
                 "prev_matched_ms": round(matched * 1e3, 2),
                 "prev_collect_ms": round(collect * 1e3, 2),
                 "prev_collected": int(a[COLLECTED]),
+                "prev_publish_ms": round((a[PUBLISHED] - a[WOKE]) * 1e3, 2),
+                "prev_publish_queued_ms": round(queued_publish * 1e3, 2),
+                "wake_queued_ms": round(queued_wake * 1e3, 2),
                 "cause": cause,
             }
         )

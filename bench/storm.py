@@ -500,7 +500,7 @@ def run_mode(args, mode: str) -> dict:
     _, shared = overlapping_gaps(t, probe_ns, two_periods_ns) if t.size > 1 else (None, np.zeros(0, bool))
     probe_gaps_ms = np.diff(probe_ns) * 1e-6 if probe_ns.size > 1 else np.array([0.0])
     mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
-    trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 9))
+    trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 11))
     explained = classify(t, trace, two_periods_ns)
     causes: dict[str, int] = {}
     for g in explained:

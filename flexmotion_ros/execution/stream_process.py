@@ -292,11 +292,12 @@ class _Child:
         self.progress.set_inputs(cfg.inputs)
 
         def publish_values(value) -> None:
+            delay = trace.run_delay() if trace is not None else 0.0
             stream.sent_ns = time.time_ns()  # just before DDS stamps it (the feedback pairs readings with it)
             row = [float(value)] * cfg.inputs if np.ndim(value) == 0 else [float(v) for v in np.ravel(value)]
             publish(row)
             if trace is not None:
-                trace.published(stream.sent_ns)
+                trace.published(stream.sent_ns, delay)
 
         def on_start(seg: Segment) -> None:
             stream.pending[0] = float(seg.info)

@@ -10,7 +10,7 @@ instants ``publish`` returned and the step ended (after the slack work: a
 garbage collection), and writes them to that file (``.npy``, one row per
 sample, columns :data:`COLUMNS`) when its stream ends.  ``bench/storm.py``
 sets it and classifies every gap with it.  Memory is allocated once
-(:data:`TRACE_ROWS` rows, 72 bytes each); later samples are not recorded.
+(:data:`TRACE_ROWS` rows, 88 bytes each); later samples are not recorded.
 """
 
 from __future__ import annotations
@@ -26,9 +26,35 @@ TRACE_ENV = "FLEXMOTION_STREAM_TRACE"
 TRACE_ROWS = 1_200_000
 #: Columns: the sample index, its deadline, the wake-up after the sleep, the system time before publishing (ns),
 #: the instant publish returned, the start of the slack work, the end of the matched-count refresh in it, the
-#: generation collected in it (-1: none), the end of the step.  Monotonic columns in s.
-COLUMNS = ("k", "deadline", "woke", "publish_ns", "published", "slack_start", "matched_end", "collected", "step_end")
-K, DEADLINE, WOKE, PUBLISH_NS, PUBLISHED, SLACK_START, MATCHED_END, COLLECTED, STEP_END = range(len(COLUMNS))
+#: generation collected in it (-1: none), the end of the step, and the stream thread's run delay (its time waiting
+#: on a run queue, cumulative, ns; ``/proc/thread-self/schedstat``; 0 where not Linux) before and after publishing.
+#: Monotonic columns in s.
+COLUMNS = (
+    "k",
+    "deadline",
+    "woke",
+    "publish_ns",
+    "published",
+    "slack_start",
+    "matched_end",
+    "collected",
+    "step_end",
+    "run_delay_before",
+    "run_delay_after",
+)
+(
+    K,
+    DEADLINE,
+    WOKE,
+    PUBLISH_NS,
+    PUBLISHED,
+    SLACK_START,
+    MATCHED_END,
+    COLLECTED,
+    STEP_END,
+    RUN_DELAY_BEFORE,
+    RUN_DELAY_AFTER,
+) = range(len(COLUMNS))
 
 
 class StreamTrace:
@@ -49,6 +75,8 @@ class StreamTrace:
         self._publish_ns = 0
         self._published = 0.0
         self._slack = (0.0, 0.0, -1.0)
+        self._delay = (0.0, 0.0)
+        self._schedstat: int | None = None
 
     @classmethod
     def from_environment(cls) -> StreamTrace | None:
@@ -56,10 +84,20 @@ class StreamTrace:
         path = os.environ.get(TRACE_ENV, "")
         return cls(path) if path else None
 
-    def published(self, publish_ns: int) -> None:
-        """Publish returned (``publish_ns``: the system time just before it, ns)."""
+    def run_delay(self) -> float:
+        """The calling thread's cumulative run-queue wait (ns; 0 if unknown): read before and after publishing."""
+        try:
+            if self._schedstat is None:
+                self._schedstat = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+            return float(os.pread(self._schedstat, 64, 0).split()[1])
+        except (OSError, IndexError, ValueError):
+            return 0.0
+
+    def published(self, publish_ns: int, delay_before: float) -> None:
+        """Publish returned (``publish_ns``: the system time just before it, ns; the run delay then, ns)."""
         self._publish_ns = publish_ns
         self._published = time.monotonic()
+        self._delay = (delay_before, self.run_delay())
 
     def slack(self, start: float, matched_end: float, collected: int) -> None:
         """The slack work after a sample: its start, the matched count's end (monotonic s), the generation collected."""
@@ -77,6 +115,7 @@ class StreamTrace:
                 self._published,
                 *self._slack,
                 time.monotonic(),
+                *self._delay,
             )
             self._n = n + 1
         self._slack = (0.0, 0.0, -1.0)
