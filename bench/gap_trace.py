@@ -44,7 +44,7 @@ from flexmotion_ros.execution.stream_trace import (  # noqa: E402
 )
 
 
-def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int) -> list[dict]:
+def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: np.ndarray | None = None) -> list[dict]:
     """Every gap over ``threshold_ns`` in the received send times ``t_ns`` (ns), with its cause (module docstring).
 
     Parameters
@@ -55,6 +55,9 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int) -> list[dic
         The stream process's trace (:data:`~flexmotion_ros.execution.stream_trace.COLUMNS`).
     threshold_ns : int
         Two periods (ns).
+    probe_ns : ndarray, optional
+        Wake-ups of the bare deadline loop beside the nodes (``deadline_probe.py``, ns): each gap then gets
+        ``probe_ms``, the longest interval of the loop's that overlaps it (one period: the loop was on time).
 
     Returns
     -------
@@ -70,8 +73,13 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int) -> list[dic
         return out
     sent = trace[:, PUBLISH_NS].astype(np.int64) if len(trace) else np.zeros(0, np.int64)
     period = np.median(np.diff(trace[:, DEADLINE])) if len(trace) > 2 else 0.0
+    p = np.asarray(probe_ns if probe_ns is not None else [], dtype=np.int64)
     for i in np.flatnonzero(np.diff(t) > threshold_ns):
         gap = {"at_ns": int(t[i]), "ms": round((t[i + 1] - t[i]) * 1e-6, 2)}
+        if p.size > 1:
+            lo = max(int(np.searchsorted(p, t[i])) - 1, 0)
+            hi = min(int(np.searchsorted(p, t[i + 1])) + 1, p.size)
+            gap["probe_ms"] = round(float(np.diff(p[lo:hi]).max()) * 1e-6, 2) if hi - lo > 1 else None
         j = int(np.searchsorted(sent, t[i], side="right")) - 1
         if j < 0 or j + 1 >= len(sent) or t[i] - sent[j] > threshold_ns:
             out.append({**gap, "cause": "untraced"})

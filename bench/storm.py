@@ -501,7 +501,7 @@ def run_mode(args, mode: str) -> dict:
     probe_gaps_ms = np.diff(probe_ns) * 1e-6 if probe_ns.size > 1 else np.array([0.0])
     mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
     trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 11))
-    explained = classify(t, trace, two_periods_ns)
+    explained = classify(t, trace, two_periods_ns, probe_ns)
     causes: dict[str, int] = {}
     for g in explained:
         causes[g["cause"]] = causes.get(g["cause"], 0) + 1
@@ -540,6 +540,11 @@ def run_mode(args, mode: str) -> dict:
         largest_gaps=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.argsort(gaps_ms)[::-1][:10]],
         gaps_shared_with_probe=int(shared.sum()),
         gap_causes=causes,
+        # the bare loop (another process) was late too during the gap: the machine stalled both (by cause)
+        gap_causes_probe_late={
+            c: sum(g["cause"] == c and (g.get("probe_ms") or 0.0) > 1.5e3 / args.rate for g in explained)
+            for c in causes
+        },
         gaps_explained=explained[:40],
         sender_gaps_over_two_periods=len(sender),
         sender_gap_max_ms=float(sender[:, 1].max()) if len(sender) else 0.0,
@@ -605,7 +610,8 @@ def main() -> None:
         )
         print(
             f"  the gaps' causes             {r['gap_causes']}; the sender's own gaps (its trace, "
-            f"{r['traced_samples']} samples): {r['sender_gaps_over_two_periods']}, max {r['sender_gap_max_ms']:.1f} ms"
+            f"{r['traced_samples']} samples): {r['sender_gaps_over_two_periods']}, max {r['sender_gap_max_ms']:.1f} ms; "
+            f"of them with the bare loop late too {r['gap_causes_probe_late']}"
         )
         if r["probe_wakes"]:
             print(
