@@ -363,7 +363,7 @@ def run_mode(args, mode: str) -> dict:
                 and storm.plan.service_is_ready()
                 and int(storm.plant_status.get("joint_states_subscribers", 0)) >= 2
             ),
-            60.0,
+            180.0,  # a loaded machine has taken over 60 s to import the planner
         )
         if not ok:
             raise RuntimeError(f"discovery failed (planner {planner.poll()}, plant {plant.poll()}); logs in {tmp}")
