@@ -30,10 +30,11 @@ It reports, per mode:
   rate and priority: a stream gap that overlaps one of the loop's is the
   machine's (counted apart), as is the hypervisor's stolen time;
 * settled lockstep moves at the target at rest (plant state, 1e-9);
-* the planner's RSS at the start and the end (and every 1000 requests).
+* the planner's RSS at the start and the end (and every 1000 requests), and optionally
+  for a while after the storm (a transient the idle heap trim hands back, or growth).
 
     python bench/storm.py                                # 1000 requests, lockstep and real time
-    python bench/storm.py --requests 10000 --modes lockstep --no-settle   # memory over 10,000 requests
+    python bench/storm.py --requests 10000 --modes lockstep --no-settle --rss-tail-seconds 90   # memory over 10,000
     python bench/storm.py --requests 60 --modes lockstep --json            # what the test suite runs
 
 OpenBLAS threads are set to 1 before numpy loads (tiny matrices: threading only costs).
@@ -104,6 +105,12 @@ def _args() -> argparse.Namespace:
         help="do not run the bare deadline loop (bench/deadline_probe.py) beside the nodes",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object per mode")
+    p.add_argument(
+        "--rss-tail-seconds",
+        type=float,
+        default=0.0,
+        help="after the last request, sample the planner's RSS every 5 s for this long (s): transient or growth",
+    )
     p.add_argument("-p", dest="planner_params", action="append", default=[], help="planner parameter NAME:=VALUE")
     return p.parse_args()
 
@@ -124,6 +131,28 @@ def rss_mb(pid: int) -> float:
             if line.startswith("VmRSS:"):
                 return int(line.split()[1]) / 1024.0
     return math.nan
+
+
+def pss_mb(pid: int) -> float:
+    """Proportional set size (MB) of process ``pid``: shared pages split among their sharers (Linux)."""
+    with open(f"/proc/{pid}/smaps_rollup") as f:
+        for line in f:
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024.0
+    return math.nan
+
+
+def family_pss_mb(pid: int) -> float:
+    """PSS (MB) of process ``pid`` and its direct children (the planning and stream processes, forked:
+    their copy-on-write pages are shared, so RSS would count them twice)."""
+    total = pss_mb(pid)
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        for child in task.read_text().split():
+            try:
+                total += pss_mb(int(child))
+            except OSError:
+                pass  # the child ended meanwhile
+    return total
 
 
 def start_node(
@@ -269,6 +298,7 @@ def run_mode(args, mode: str) -> dict:
     settled_bad: list[dict] = []
     internal_answers: list[str] = []
     rss: list[tuple[int, float]] = []
+    rss_tail: list[tuple[float, float, float]] = []
     kinds: dict[str, int] = {}
     t_start = time.monotonic()
 
@@ -458,6 +488,12 @@ def run_mode(args, mode: str) -> dict:
         settle(None, 30.0)
         time.sleep(0.5)
         rss.append((sent, rss_mb(planner.pid)))
+        # A reading right after the storm can catch heap the planner frees and hands back when
+        # idle (execution/heap.py, at most every 30 s): sample on to tell a transient from growth.
+        tail_start = time.monotonic()
+        while time.monotonic() - tail_start < args.rss_tail_seconds:
+            time.sleep(5.0)
+            rss_tail.append((time.monotonic() - tail_start, rss_mb(planner.pid), family_pss_mb(planner.pid)))
     finally:
         teardown_ns = time.time_ns()  # the stream's gaps are judged up to here (shutdown reconfigures DDS)
         crashed = {name: p.poll() for name, p in (("planner", planner), ("plant", plant)) if p.poll() is not None}
@@ -561,6 +597,7 @@ def run_mode(args, mode: str) -> dict:
         goals_superseded=int(float(planner_value("goals_superseded", "0") or 0)),
         goals_cancelled=int(float(planner_value("goals_cancelled", "0") or 0)),
         rss_mb=rss,
+        rss_tail_mb=rss_tail,
         logs=str(tmp),
     )
     return out
@@ -627,6 +664,11 @@ def main() -> None:
             )
         print(f"  goals superseded / cancelled {r['goals_superseded']} / {r['goals_cancelled']}")
         print("  planner RSS MB               " + ", ".join(f"{n}: {m:.1f}" for n, m in r["rss_mb"]))
+        if r["rss_tail_mb"]:
+            print(
+                "  after the storm, s: RSS MB (PSS MB with its child processes) "
+                + ", ".join(f"{t:.0f}: {m:.1f} ({f:.1f})" for t, m, f in r["rss_tail_mb"])
+            )
 
 
 if __name__ == "__main__":

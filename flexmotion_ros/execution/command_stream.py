@@ -37,6 +37,7 @@ from enum import Enum
 
 import numpy as np
 
+from .heap import resident_zeros
 from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
 
 #: How often ``on_idle`` runs while a silent stream sleeps (s).
@@ -142,7 +143,7 @@ class SampleRecord:
     """
 
     def __init__(self, capacity: int) -> None:
-        self._buf = np.zeros((max(1, int(capacity)), 2))
+        self._buf = resident_zeros((max(1, int(capacity)), 2))  # resident now: a flat RSS
         self._n = 0  # samples appended so far
 
     def __len__(self) -> int:

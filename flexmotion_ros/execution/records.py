@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
+from .heap import resident_zeros
 
 #: Most samples a record holds (s of the command rate): the ring buffers are allocated for this.
 RECORD_CAPACITY_S = 120.0
@@ -42,8 +43,8 @@ class SignalLog:
     """
 
     def __init__(self, capacity: int, width: int) -> None:
-        self._t = np.zeros(max(1, int(capacity)), dtype=np.int64)
-        self._v = np.zeros((max(1, int(capacity)), max(1, int(width))))
+        self._t = resident_zeros(max(1, int(capacity)), dtype=np.int64)
+        self._v = resident_zeros((max(1, int(capacity)), max(1, int(width))))
         self._n = 0
         self._lock = threading.Lock()
 
