@@ -66,6 +66,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 from deadline_probe import overlapping_gaps, steal_ticks  # noqa: E402 -- beside this script
+from gap_trace import classify, own_gaps  # noqa: E402 -- beside this script
 
 RATE_HZ = 200.0
 LIMIT = 3.0
@@ -154,11 +155,14 @@ def family_pss_mb(pid: int) -> float:
     return total
 
 
-def start_node(exe: str, ns: str, params: Path, extra: list[str], log: Path) -> subprocess.Popen:
+def start_node(
+    exe: str, ns: str, params: Path, extra: list[str], log: Path, env: dict | None = None
+) -> subprocess.Popen:
     cmd = [sys.executable, "-m", f"flexmotion_ros.nodes.{exe}", "--ros-args", "-r", f"__ns:={ns}"]
     cmd += ["--params-file", str(params), *[a for x in extra for a in ("-p", x)]]
     out = open(log, "w")  # noqa: SIM115 -- the child's log, closed when the child ends
-    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)
 
 
 class Storm:
@@ -270,7 +274,11 @@ def run_mode(args, mode: str) -> dict:
         [sys.executable, str(ROOT / "bench" / "command_recorder.py"), "--topic", f"{ns}/commands"]
         + ["--out", str(commands_out), "--priority", str(max(0, stream_priority(args) - 2))]
     )
-    planner = start_node("planner_node", ns, params, list(args.planner_params), planner_log)
+    # the stream process traces every sample it sends (stream_trace.py): a gap is then the sender's or the transport's
+    trace_out = tmp / "stream_trace.npy"
+    planner = start_node(
+        "planner_node", ns, params, list(args.planner_params), planner_log, {"FLEXMOTION_STREAM_TRACE": str(trace_out)}
+    )
     storm = Storm(ns)
     probe_out = tmp / "probe.npy"
     probe = None
@@ -385,7 +393,7 @@ def run_mode(args, mode: str) -> dict:
                 and storm.plan.service_is_ready()
                 and int(storm.plant_status.get("joint_states_subscribers", 0)) >= 2
             ),
-            60.0,
+            180.0,  # a loaded machine has taken over 60 s to import the planner
         )
         if not ok:
             raise RuntimeError(f"discovery failed (planner {planner.poll()}, plant {plant.poll()}); logs in {tmp}")
@@ -528,6 +536,12 @@ def run_mode(args, mode: str) -> dict:
     _, shared = overlapping_gaps(t, probe_ns, two_periods_ns) if t.size > 1 else (None, np.zeros(0, bool))
     probe_gaps_ms = np.diff(probe_ns) * 1e-6 if probe_ns.size > 1 else np.array([0.0])
     mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
+    trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 11))
+    explained = classify(t, trace, two_periods_ns, probe_ns)
+    causes: dict[str, int] = {}
+    for g in explained:
+        causes[g["cause"]] = causes.get(g["cause"], 0) + 1
+    sender = own_gaps(trace, two_periods_ns, teardown_ns) if len(trace) else np.zeros((0, 2))
     out.update(
         sent=sent,
         duration_s=duration,
@@ -561,6 +575,16 @@ def run_mode(args, mode: str) -> dict:
         gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / args.rate)[:40]],
         largest_gaps=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.argsort(gaps_ms)[::-1][:10]],
         gaps_shared_with_probe=int(shared.sum()),
+        gap_causes=causes,
+        # the bare loop (another process) was late too during the gap: the machine stalled both (by cause)
+        gap_causes_probe_late={
+            c: sum(g["cause"] == c and (g.get("probe_ms") or 0.0) > 1.5e3 / args.rate for g in explained)
+            for c in causes
+        },
+        gaps_explained=explained[:40],
+        sender_gaps_over_two_periods=len(sender),
+        sender_gap_max_ms=float(sender[:, 1].max()) if len(sender) else 0.0,
+        traced_samples=len(trace),
         probe_wakes=int(probe_ns.size),
         probe_gaps_over_two_periods=int(np.sum(probe_gaps_ms > 2e3 / args.rate)),
         probe_gap_max_ms=float(probe_gaps_ms.max()),
@@ -620,6 +644,11 @@ def main() -> None:
             f"  stream                       {r['commands']} commands; gap max {r['gap_max_ms']:.1f} ms "
             f"(p99.9 {r['gap_p999_ms']:.2f} ms); gaps over two periods ({2e3 / args.rate:g} ms): "
             f"{r['gaps_over_two_periods']}; last command {r['last_command']}"
+        )
+        print(
+            f"  the gaps' causes             {r['gap_causes']}; the sender's own gaps (its trace, "
+            f"{r['traced_samples']} samples): {r['sender_gaps_over_two_periods']}, max {r['sender_gap_max_ms']:.1f} ms; "
+            f"of them with the bare loop late too {r['gap_causes_probe_late']}"
         )
         if r["probe_wakes"]:
             print(

@@ -50,6 +50,7 @@ from .heap import make_resident
 from .output import OutputSettings, OutputStream
 from .plan_process import reap_child
 from .realtime import SlackCollector, raise_threads
+from .stream_trace import StreamTrace
 from .timeline import HOLD, Segment
 
 #: Rows kept in the shared sample ring (65 s at 1 kHz): how far the parent may fall behind.
@@ -230,10 +231,13 @@ class _RowWriter:
     progress: SharedProgress
     sent_ns: int  # system time (ns) just before the last publish
     pending: list[float]  # the segments that started / finished at the sample being sent
+    trace: StreamTrace | None  # the benchmarks' per-sample trace (stream_trace.TRACE_ENV)
 
     def step(self):
         out = super().step()  # type: ignore[misc]
         if out is not None and out.value is not None:
+            if self.trace is not None:
+                self.trace.step_done(out.sample, out.deadline, out.time)
             self.progress.write_row(
                 out.sample,
                 out.time,
@@ -280,6 +284,7 @@ class _Child:
         self.matched: Callable[[], int] = lambda: 0
         self.close_output: Callable[[], None] = lambda: None
         self.collector = SlackCollector()
+        self.trace = StreamTrace.from_environment()
 
     def configure(self, cfg: ChildSettings) -> None:
         self.end("reconfigured")
@@ -289,9 +294,12 @@ class _Child:
         self.progress.set_inputs(cfg.inputs)
 
         def publish_values(value) -> None:
+            delay = trace.run_delay() if trace is not None else 0.0
             stream.sent_ns = time.time_ns()  # just before DDS stamps it (the feedback pairs readings with it)
             row = [float(value)] * cfg.inputs if np.ndim(value) == 0 else [float(v) for v in np.ravel(value)]
             publish(row)
+            if trace is not None:
+                trace.published(stream.sent_ns, delay)
 
         def on_start(seg: Segment) -> None:
             stream.pending[0] = float(seg.info)
@@ -307,12 +315,19 @@ class _Child:
 
         matched = self.matched
         progress = self.progress
+        trace = self.trace
         collector = self.collector
 
         def after_sample(slack: float) -> None:
+            t0 = time.monotonic() if trace is not None else 0.0
             if progress.written % MATCH_SAMPLES == 0:
                 progress.set_matched(matched())
+            if trace is None:
+                collector(slack)
+                return
+            t1, before = time.monotonic(), list(collector.collections)
             collector(slack)
+            trace.slack(t0, t1, next((g for g in range(3) if collector.collections[g] != before[g]), -1))
 
         def on_idle() -> None:
             progress.set_matched(matched())
@@ -342,6 +357,7 @@ class _Child:
         stream.progress = self.progress
         stream.pending = [NO_SEGMENT, NO_SEGMENT]
         stream.sent_ns = 0
+        stream.trace = trace
         self.stream = stream
 
     def handle(self, op: str, args: tuple) -> Any:
@@ -354,7 +370,9 @@ class _Child:
         if op == "start":
             if stream.priority > 0:
                 raise_threads(max(1, stream.priority - 1))  # DDS's threads too: one step below the loop
-                self.collector.enable()
+                # every generation collected and measured now, the heap so far frozen: the first samples no
+                # longer pay a full collection of unknown cost (55-96 ms, the storm's first gap)
+                self.collector.enable(prime=True, freeze=True)
                 sys.setswitchinterval(min(sys.getswitchinterval(), 0.25 * stream.dt))
             stream.start()
             return stream.priority_error
@@ -378,6 +396,8 @@ class _Child:
             halt = self.stream.stop(why)
             self.collector.disable()
             self.stream = None
+            if self.trace is not None:
+                self.trace.save()
         self.close_output()
         self.close_output = lambda: None
         self.matched = lambda: 0
