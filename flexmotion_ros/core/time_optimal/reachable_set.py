@@ -264,7 +264,6 @@ def inner_smooth(
     function of ``nu``, so Newton's method with a line search converges fast
     from any start, whatever the number of switches.  ``eps``: ``eps_rel``
     times the mean ``|S|`` at the start, or ``smoothing`` (scaled) if given.
-    Returns ``(nuh, m, dm/dT, eps)``.
     """
     sys, s, um = sh.sys, sh.s, sh.u_max
     grid = sample_grid(sys, T)
@@ -323,7 +322,7 @@ def inner_smooth(
     nu = nuh / s
     mu = um * float(wq @ (S * S / np.sqrt(S * S + eps * eps)))  # Lagrange multiplier nu.grad h
     dm = um * (math.sqrt(S[-1] ** 2 + eps * eps) - eps) + mu * float(nu @ sys.A_x(eAx))
-    return nuh, f, dm, eps
+    return nuh, f, dm
 
 
 def graded_grid(system, T: float, per_half_period: float) -> np.ndarray | None:

@@ -5,8 +5,9 @@ own start, so two solves at neighbouring durations solved different problems:
 ``m`` jumped (fuzz case 2155: 0.990 at 172.665 s, 1.081 at 172.715 s), the
 bracket crawled to the jump and every level of the warm start spent all its
 ``SMOOTH_OUTER`` steps without reaching ``m = 1`` (cases 247 and 71 below: 12
-of 12 steps at both levels on c32a8c3).  With ``eps T`` fixed per level each
-level converges in a few steps; the plans are the same certified optima.
+of 12 steps at both levels on c32a8c3).  With ``eps = level / (u_max T)``
+(a function of ``T`` alone) each level converges in a few steps; the plans
+are the same certified optima.
 """
 
 from __future__ import annotations
