@@ -99,12 +99,23 @@ def smoothed_start(
     (``levels``) brings ``T`` close to the optimum.  The first stage of
     :func:`solve_costate`, and the guesses of the fast path.  ``nuh``: a warm start
     (scaled), if any.  Leaves ``sh`` unchanged.
+
+    Within a level the smoothing is ``eps = level / (u_max T)``: ``level``
+    times the mean ``|S|`` of a minimiser with ``m = 1`` (``h = u_max int
+    |S| = 1``), a function of ``T`` alone, so the ``m(T)`` the bracket
+    narrows on is one continuous function.  Before (c32a8c3), each solve took
+    ``eps`` from the mean ``|S|`` of its own start: ``m`` jumped between
+    neighbouring ``T`` (1.0808 at 172.715 s, 0.990 at 172.665 s), the
+    bracket crawled to the jump and each level spent all its
+    :data:`SMOOTH_OUTER` steps.  (Fixing ``eps T`` from a level's first
+    solve, where ``m`` may be far from 1, scaled it badly: two 7-mode moves
+    were refused.)
     """
     T = max(T_init, T_low, 1e-300)
-    for eps in levels:
+    for level in levels:
         lo, hi = T_low, math.inf
         for _ in range(SMOOTH_OUTER):
-            nuh, m, dm = inner_smooth(sh, T, nuh, eps)
+            nuh, m, dm = inner_smooth(sh, T, nuh, level, smoothing=level / (sh.u_max * T))
             if m > 0.0 and abs(math.log(m)) < 1e-3:
                 break
             T, lo, hi = bracketed_step(T, m, dm, lo, hi)

@@ -254,13 +254,16 @@ SMOOTH_DECAY = 36.0
 SMOOTH_RTOL = 1e-9
 
 
-def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float, max_iter: int = 50):
+def inner_smooth(
+    sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float, max_iter: int = 50, smoothing: float | None = None
+):
     """Smoothed, discretised inner problem: a warm start for the exact one.
 
     ``|S|`` is replaced by ``sqrt(S^2 + eps^2) - eps`` and the integral by the
     trapezoidal rule on the bracketing grid: a smooth, strictly convex
     function of ``nu``, so Newton's method with a line search converges fast
-    from any start, whatever the number of switches.
+    from any start, whatever the number of switches.  ``eps``: ``eps_rel``
+    times the mean ``|S|`` at the start, or ``smoothing`` (scaled) if given.
     """
     sys, s, um = sh.sys, sh.s, sh.u_max
     grid = sample_grid(sys, T)
@@ -285,8 +288,8 @@ def inner_smooth(sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float,
     Z = null_basis(w)
     S = Gm @ nuh
     GZ = Gm @ Z  # the search space's columns on the grid: one product per solve, not per step
-    # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve)
-    eps = eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
+    # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve), or the caller's
+    eps = smoothing if smoothing is not None else eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
 
     def value(S):
         return um * float(wq @ (np.sqrt(S * S + eps * eps) - eps))

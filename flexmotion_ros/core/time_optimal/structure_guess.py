@@ -91,7 +91,7 @@ def newton_from_guess(
         with a clear error).  None: no limit.
     refine : callable, optional
         ``refine(roots, sign0, nuh, T) -> (ok, roots, nuh, T, residual)``,
-        the switch-time Newton; default :func:`refine_switches` on ``sh``
+        the switch-time Newton; default :func:`refine_switches` on ``sh`` (``merge=True``)
         (the lean path passes its own, :func:`~.lean.refine`).
     structure : tuple of (ndarray, float), optional
         The first structure (switch times-to-go in s, first sign) if already
@@ -106,7 +106,7 @@ def newton_from_guess(
     if refine is None:
 
         def refine(roots, sign0, nuh, T):
-            return refine_switches(sh, roots, sign0, nuh, T)
+            return refine_switches(sh, roots, sign0, nuh, T, merge=True)
 
     if tried is None:
         tried = []
@@ -115,8 +115,9 @@ def newton_from_guess(
             return None
         if any(_same_structure(roots, sign0, r, s, T) for s, r in tried):
             return None  # back to a structure that failed (here or in an earlier guess): stop
-        tried.append((sign0, roots))
         ok, tau, nuh_r, T_r, _ = refine(roots, sign0, nuh, T)
+        if tau.size == roots.size:  # a run that merged a pair (refine_switches' merge) tried a smaller structure
+            tried.append((sign0, roots))
         if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
             return None
         if ok:

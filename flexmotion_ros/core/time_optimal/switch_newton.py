@@ -26,14 +26,46 @@ DENSE_UP_TO = 200
 #: converged if its residual is within this many rounding units of the
 #: times (``eps T``) times the largest slope of the residual.
 ROUNDING_FLOOR = 64.0
+#: Neighbouring switches closer than this (relative to ``T``) that a Newton
+#: step carries past each other are a merging pair (``structure_guess.MERGE_RTOL``'s
+#: value: the pair its caller would remove after the run).
+MERGE_RTOL = 1e-3
+#: ... once the same pair has blocked this many full steps in a row (a pair
+#: crossing once may part again: merged at the first crossing, fuzz cases 1057
+#: and 2336 went from the fast path to the full solver; at 3, none of 0..2499).
+MERGE_AFTER = 3
+#: With ``merge``, a run whose residual falls by less than this fraction in
+#: :data:`CRAWL_STEPS` steps in a row stops unconverged (its caller edits the
+#: structure): damped steps of 1/256 .. 1/2048 crawled through all 30 steps
+#: (fuzz case 544: 4 such runs, half of its fast path's time).
+CRAWL_DECREASE = 0.01
+CRAWL_STEPS = 5
 
 
-def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
+def refine_switches(
+    sh: Shooting,
+    roots: np.ndarray,
+    sign0: float,
+    nuh: np.ndarray,
+    T: float,
+    max_iter: int = 30,
+    merge: bool = False,
+):
     """Newton on switch times, co-state and duration together, for a fixed switch structure.
 
     Unknowns ``(tau_1..tau_L, nu, T)``; equations: final state zero (n),
     switching function zero at each switch (L), one normalisation of ``nu``.
     Square for any ``L``; all derivatives in closed form, no root finding.
+
+    ``merge``: when full Newton steps would carry the same pair of neighbouring
+    switches closer than :data:`MERGE_RTOL` ``T`` past each other
+    :data:`MERGE_AFTER` times in a row, the pair is merging (a blip shrinking to nothing): it is removed and Newton goes
+    on with ``L - 2`` switches (the first level unchanged; the returned
+    ``roots`` then has that size).  Without it the step is halved until the
+    pair stays ordered, and the run crawls (fuzz case 2380: 24 halved steps;
+    544: 30 steps without converging, then the same pair removed by the caller).
+    With ``merge`` a run that crawls for :data:`CRAWL_STEPS` steps also stops
+    (unconverged): the structure search, not halving, moves on.
 
     Returns ``(ok, roots, nuh, T, residual)``; ``ok`` is False if the
     structure broke (switches crossed or left ``(0, T)``) or Newton stalled.
@@ -62,7 +94,9 @@ def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarr
     rn = float(np.max(np.abs(r)))
     floor = 0.0  # the residual that rounding the times alone leaves (see below)
     eps = np.finfo(float).eps
-    for _ in range(max_iter):
+    blocked, blocked_pair = 0, None  # steps in a row whose full length the same pair of switches blocked
+    crawled = 0  # steps in a row that reduced the residual by less than CRAWL_DECREASE
+    for it in range(max_iter):
         if rn <= 16.0 * eps:
             break
         fT = (sys.A_x(eAx) + um * signs[-1] * sys.expm_B(np.array([T]))[0]) / s
@@ -80,15 +114,40 @@ def refine_switches(sh: Shooting, roots: np.ndarray, sign0: float, nuh: np.ndarr
                 slopes = np.concatenate([slopes, np.abs(g * jump[:, None]).ravel(), np.abs(dS * gscale)])
             floor = ROUNDING_FLOOR * eps * T * float(np.max(slopes))
             break
+        k = merging_pair(tau, step[:L], T) if merge else None
+        blocked = blocked + 1 if k is not None and k == blocked_pair else int(k is not None)
+        blocked_pair = k
+        if blocked >= MERGE_AFTER and it + 1 < max_iter:
+            return refine_switches(sh, np.delete(tau, [k, k + 1]), sign0, nuh, T, max_iter - it - 1, merge)
         accepted = damped_step(tau, nuh, T, step, rn, residual)
         if accepted is None:
             break
+        crawled = crawled + 1 if merge and accepted[-1] > (1.0 - CRAWL_DECREASE) * rn else 0
         tau, nuh, T, r, g, eAx, rn = accepted
+        if crawled >= CRAWL_STEPS:  # halved steps that barely move: this structure is not converging
+            break
     if L:  # nu and -nu both vanish at the switches: take the one whose signs match
         first = 0.5 * tau[0]
         if np.sign(sys.switching(nuh / s, np.array([first]))[0]) != sign0:
             nuh = -nuh
     return rn <= max(POLISH_TOL, floor), tau, nuh, T, rn
+
+
+def merging_pair(tau: np.ndarray, dtau: np.ndarray, T: float) -> int | None:
+    """Index ``k`` of the one pair ``(tau_k, tau_k+1)`` (s) that the full step ``dtau`` carries past each other, or None.
+
+    Only a pair closer than ``MERGE_RTOL T`` counts, and only if it is the
+    step's one crossing, with the first switch still after ``tau = 0`` (a
+    switch leaving there would change the first level).
+    """
+    if tau.size < 2:
+        return None
+    new = tau + dtau
+    crossed = np.flatnonzero(np.diff(new) <= 0.0)
+    if crossed.size != 1 or new[0] <= 0.0:
+        return None
+    k = int(crossed[0])
+    return k if tau[k + 1] - tau[k] <= MERGE_RTOL * T else None
 
 
 def damped_step(tau: np.ndarray, nuh: np.ndarray, T: float, step: np.ndarray, rn: float, residual) -> tuple | None:
