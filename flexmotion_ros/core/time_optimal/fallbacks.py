@@ -215,7 +215,20 @@ def end_blip_fallback(problem, system, sh, profile, t0, T_low, assemble) -> Bang
     T = profile.duration
     if roots is None or not sign0 or roots.size >= profile.switch_times.size:
         return None  # nothing dropped: not a blip
-    ok, tau, T_c, _ = primal_newton(sh, np.asarray(roots, float), sign0, T)
+    roots = np.asarray(roots, float)
+    # The proved zeros, then without the one or two nearest the end: an iteration that ended on a blip can
+    # leave a spurious sign change just beyond the unresolved window as well (each dropped zero flips the
+    # last arc's sign); every candidate must be certified OPTIMAL and not longer, so none is trusted blindly.
+    for drop in range(min(3, roots.size + 1)):
+        better = _without_blip(problem, system, sh, roots[drop:], sign0 * (-1.0) ** drop, T, t0, T_low, assemble)
+        if better is not None:
+            return better
+    return None
+
+
+def _without_blip(problem, system, sh, roots, sign0, T, t0, T_low, assemble) -> BangBangProfile | None:
+    """The certified extremal with switches at ``roots`` (time to go, s) and last-arc sign ``sign0``, or None."""
+    ok, tau, T_c, _ = primal_newton(sh, roots, sign0, T)
     if not ok or not T_c <= T * (1.0 + GAP_RTOL):  # a certified extremal is the optimum; rounding aside
         return None
     signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
