@@ -18,8 +18,9 @@ from ..results import ProofKind
 from .certify import feasible as independent_feasible
 from .dual import dual_bound, lift, proves_infeasible
 from .limits import Limits
-from .lp import LimitLP, LPSolution, LPUndecided, Segments
+from .lp import LimitLP, LPUndecided
 from .proof import LIFT_MAX_UNKNOWNS, LOOSEN
+from .segments import LPSolution, Segments
 from .structure import map_runs, solution_runs
 
 #: Window half-widths (samples): mapped from the coarser level (in its samples), or from the same rate.
