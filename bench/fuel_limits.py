@@ -14,8 +14,14 @@ Tables:
    deflection ``--q-frac`` x the unlimited peak, slew ``--slew`` N/s: samples, added time,
    proved fewest, LP solves, planning time.
 
+Planning times are CPU time of this process (``time.process_time``, ``--clock cpu``, the default: the
+machine is shared) or wall time (``--clock wall``); the header says which, with the load average.
+``FLEXMOTION_TREE=<checkout>`` plans with the package of another checkout (an A/B of two trees with
+the same bench, e.g. ``FLEXMOTION_TREE=/work/main``).
+
     python bench/fuel_limits.py
     python bench/fuel_limits.py --rate 250 --goal 1.0
+    python bench/fuel_limits.py --limits-only --repeat 3
 """
 
 from __future__ import annotations
@@ -35,6 +41,12 @@ def _args() -> argparse.Namespace:
     p.add_argument("--q-frac", type=float, default=0.6, dest="q_frac")
     p.add_argument("--slew", type=float, default=10.0)
     p.add_argument("--skip-limits", action="store_true", dest="skip_limits")
+    p.add_argument("--limits-only", action="store_true", dest="limits_only", help="table 3 only")
+    p.add_argument("--repeat", type=int, default=1, help="plan each limited case this many times (median)")
+    p.add_argument(
+        "--budget", type=float, default=None, help="the limited planner's wall-clock budget (s; default its own)"
+    )
+    p.add_argument("--clock", choices=("cpu", "wall"), default="cpu", help="planning time: process CPU or wall")
     p.add_argument("--blas-threads", type=int, default=1, dest="blas", help="OpenBLAS threads (0: library default)")
     return p.parse_args()
 
@@ -46,13 +58,15 @@ if ARGS.blas > 0:  # tiny matrices: BLAS threads only cost, and the machine is s
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+TREE = os.environ.get("FLEXMOTION_TREE") or os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+sys.path.insert(0, TREE)
 from flexmotion_ros.core import (
     ModalModel,
     plan_time_optimal,
     plan_time_optimal_zoh,
     rest_to_rest,
 )
+from flexmotion_ros.core.constraints import planner as limited_planner
 from flexmotion_ros.core.constraints.limits import Limits
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
 from flexmotion_ros.core.errors import FlexmotionError
@@ -60,11 +74,13 @@ from flexmotion_ros.core.fuel.curve import fuel_time_curve
 from flexmotion_ros.core.fuel.lp import plan_min_fuel_zoh
 from flexmotion_ros.core.fuel.min_fuel import plan_min_fuel
 
+CLOCK = time.process_time if ARGS.clock == "cpu" else time.perf_counter
+
 
 def timed(f, *a, **k):
-    t = time.perf_counter()
+    t = CLOCK()
     out = f(*a, **k)
-    return out, time.perf_counter() - t
+    return out, CLOCK() - t
 
 
 def row(cols, widths):
@@ -76,6 +92,7 @@ def main() -> None:
     problem = rest_to_rest(model, 1.0, ARGS.goal)
     rate = ARGS.rate
     print(f"Wie-Bernstein, goal {ARGS.goal} m, u_max 1 N, rate {rate:g} Hz")
+    print(f"# tree {os.path.abspath(TREE)}, {ARGS.clock} clock, load average {os.getloadavg()[0]:.1f}")
     to, t_to = timed(plan_time_optimal, problem)
     z, t_z = timed(plan_time_optimal_zoh, problem, rate, to)
     print(
@@ -83,6 +100,13 @@ def main() -> None:
         f"({z.duration:.3f} s, {t_z * 1e3:.0f} ms, fewest proved: {z.minimal})"
     )
 
+    if not ARGS.limits_only:
+        _fuel(problem, rate, to)
+    if not ARGS.skip_limits:
+        _limits(problem, rate, z)
+
+
+def _fuel(problem, rate, to) -> None:
     T = ARGS.fuel_factor * to.duration
     cont, t_c = timed(plan_min_fuel, problem, T, to)
     win, t_w = timed(plan_min_fuel_zoh, problem, rate, T, to, nu_guess=cont.costate)
@@ -116,8 +140,10 @@ def main() -> None:
         + " s"
     )
 
-    if ARGS.skip_limits:
-        return
+
+def _limits(problem, rate, z) -> None:
+    if ARGS.budget is not None:  # a loaded machine can pass the wall-clock budget on CPU seconds of work
+        limited_planner.TIME_BUDGET_S = ARGS.budget
     peak_v = float(np.max(np.abs(z.states[:, 1])))
     peak_q = float(np.max(np.abs(z.states[:, 2])))
     both = Limits(ARGS.v_frac * peak_v, (ARGS.q_frac * peak_q,), ARGS.slew)
@@ -132,10 +158,12 @@ def main() -> None:
     ]
     for name, lim in cases:
         try:
-            r, t = timed(plan_limited_zoh, problem, rate, lim, z)
+            runs = [timed(plan_limited_zoh, problem, rate, lim, z) for _ in range(max(ARGS.repeat, 1))]
         except FlexmotionError as exc:  # a refusal or an honest failure is a row too
             print(row([name, "-", "-", "-", "-", "-", "-", f"{type(exc).__name__}: {exc}"], w), flush=True)
             continue
+        r = runs[0][0]
+        t = float(np.median([x[1] for x in runs]))
         print(
             row(
                 [
@@ -145,13 +173,15 @@ def main() -> None:
                     "proved" if r.minimal else f">={r.lower_bound_samples}",
                     r.lp_solves,
                     r.cuts,
-                    f"{t:.1f}",
+                    f"{t:.2f}",
                     r.extra["lower_bound_proof"],
                 ],
                 w,
             ),
             flush=True,
         )
+
+    print(f"# load average after the table: {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

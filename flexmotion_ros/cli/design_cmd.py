@@ -21,8 +21,8 @@ from ..core.design.problem import (
 )
 from ..core.design.space import PARAMETER_RANGES, DesignParameter
 from ..core.errors import InputError
+from ..core.parameter_checks import check_parameters
 from ..core.parameter_file import read_parameter_file
-from ..core.parameters import check_parameters
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -15,8 +15,8 @@ from ..core.model.modal_model import check_positive
 from ..core.multi_input.config import MultiPlannerConfig
 from ..core.multi_input.dispatch import check_budgets, config_from_any, move_problem
 from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
+from ..core.parameter_checks import check_parameters
 from ..core.parameter_file import read_parameter_file
-from ..core.parameters import check_parameters
 from ..core.ros_types import parse_parameter_value
 from . import multi_plan
 

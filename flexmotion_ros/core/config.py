@@ -35,6 +35,7 @@ from .errors import ConfigError, GoalError
 from .model.boundary import MoveProblem
 from .model.measurement import measurement_map
 from .model.modal_model import ModalModel, check_positive
+from .parameter_checks import check_parameters, check_required_options
 from .parameter_file import (
     dump_parameters,
     flatten,
@@ -47,8 +48,6 @@ from .parameters import (
     MAX_MOVE_DURATION_S,
     MAX_MOVE_SAMPLES,
     NODE_NAMES,
-    check_parameters,
-    check_required_options,
 )
 from .shaping.shapers import SHAPERS
 from .time_optimal.rigid_body import rigid_time

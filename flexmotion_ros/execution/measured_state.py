@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.errors import ConfigError, GoalError
 from ..core.model.modal_model import ModalModel
-from ..core.parameters import check_choice, closest_hint
+from ..core.parameter_checks import check_choice, closest_hint
 from ..core.simulation.exact import modal_amplitudes
 
 

@@ -36,7 +36,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.errors import GoalError
-from ..core.parameters import closest_hint
+from ..core.parameter_checks import closest_hint
 from ..execution.measured_state import RIGID_BODY
 
 #: Prefix of ``Path.header.frame_id`` when a GetPlan request is refused.

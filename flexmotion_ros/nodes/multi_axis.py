@@ -37,7 +37,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from ..core.errors import ConfigError, GoalError
 from ..core.multi_input.config import MultiPlannerConfig
 from ..core.multi_input.dispatch import AnyConfig, body_positions, check_joint_names, keep_targets
-from ..core.parameters import closest_hint
+from ..core.parameter_checks import closest_hint
 from ..execution.measured_state import StateSettings
 from . import messages
 

@@ -48,7 +48,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ..core.errors import ConfigError, FlexmotionError
-from ..core.parameters import METHOD_OPTIONS, check_name, check_type
+from ..core.parameter_checks import check_name, check_type
+from ..core.parameters import METHOD_OPTIONS
 
 
 @dataclass(frozen=True)

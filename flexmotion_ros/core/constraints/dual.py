@@ -38,10 +38,11 @@ from scipy.signal import fftconvolve
 
 from ..sampled.sparse_rows import SparseRows
 from ..tolerances import PROOF_RTOL
-from .lp import CUT, SLEW, STATE, LimitLP, LPSolution
+from .assembly import LimitRows
+from .segments import CUT, SLEW, STATE, LPSolution
 
 
-def dual_bound(lp: LimitLP, sol: LPSolution) -> tuple[float, np.ndarray]:
+def dual_bound(lp: LimitRows, sol: LPSolution) -> tuple[float, np.ndarray]:
     """``(bound, loss)``: the weak-duality bound on ``t*(K)`` from ``sol``'s multipliers and the per-sample loss."""
     K = sol.K
     kd = lp.kdata(K)
@@ -103,7 +104,7 @@ LIFT_ROUNDS = 4
 OWN_WEIGHT = 1e8
 
 
-def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
+def lift(lp: LimitRows, sol: LPSolution) -> LPSolution:
     """Multipliers for the FULL problem from a window solution's primal (the full KKT system).
 
     A window LP shares one level over a run; its own multipliers only make
@@ -243,7 +244,7 @@ def lift(lp: LimitLP, sol: LPSolution) -> LPSolution:
     return best
 
 
-def _response_states(lp: LimitLP, K: int, u: np.ndarray) -> np.ndarray:
+def _response_states(lp: LimitRows, K: int, u: np.ndarray) -> np.ndarray:
     """States (response coordinates) at samples 0..K by the closed forms (FFT convolution)."""
     kd = lp.kdata(K)
     out = kd.xf.copy()

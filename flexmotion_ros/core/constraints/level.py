@@ -18,8 +18,9 @@ from ..results import ProofKind
 from .certify import feasible as independent_feasible
 from .dual import dual_bound, lift, proves_infeasible
 from .limits import Limits
-from .lp import LimitLP, LPSolution, LPUndecided, Segments
+from .lp import LimitLP, LPUndecided
 from .proof import LIFT_MAX_UNKNOWNS, LOOSEN
+from .segments import LPSolution, Segments
 from .structure import map_runs, solution_runs
 
 #: Window half-widths (samples): mapped from the coarser level (in its samples), or from the same rate.
@@ -31,6 +32,13 @@ WIDE = 4
 #: feasibility LP and its independent confirmation take 5-30 s on a loaded machine, at 13,000 one LP
 #: takes 10 s and more; beyond it a count the dual bounds cannot settle is left unproved (and says so).
 FULL_LP_MAX_SAMPLES = 3000
+#: The reference structure handed to the next level is that of the smoothest sequence within this
+#: (relative) of the probe's ``t``: a vertex chatters where a state rides its limit (each chattering
+#: stretch would be free at the next level, 4 x longer: 936 free samples at 1 kHz for the bench's
+#: deflection limit); much looser (1e-5) and the smooth sequence flattens ramps the optimum needs
+#: (the windows then miss the optimum at ``K - 1`` and its lifted dual bound fails); much tighter
+#: (1e-8) and it keeps the chatter.
+REF_SLACK = 1e-6
 
 
 class Level:
@@ -202,16 +210,16 @@ class Level:
         return k1 + (1.0 - t1) / s if s < 0.0 else None
 
     def reference(self, K: int) -> tuple:
-        """Runs of the optimum at ``K`` for the next level; with every sample free, of the smoothest
-        sequence at the same ``t`` (a vertex chatters where a state rides its limit)."""
+        """Runs of the optimum at ``K`` for the next level: of the smoothest sequence in the same
+        segments within :data:`REF_SLACK` of its ``t`` (a vertex chatters where a state rides its
+        limit, with every sample free and in the free windows alike); the vertex's if that LP fails."""
         sol = self.sols[K]
-        if self.full:
-            try:
-                smooth = self.lp.solve(K, Segments.all_free(K), mode="smooth", t_fix=sol.t * (1.0 + 1e-5))
-            except SolverError:
-                smooth = None
-            if smooth is not None:
-                sol = smooth
+        try:
+            smooth = self.lp.solve(K, sol.segments, mode="smooth", t_fix=sol.t * (1.0 + REF_SLACK))
+        except SolverError:
+            smooth = None
+        if smooth is not None:
+            sol = smooth
         return solution_runs(sol, self.lp.um, self.lp.slew), K
 
     def prove(self, K: int) -> bool | ProofKind | str | None:

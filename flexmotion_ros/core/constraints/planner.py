@@ -56,8 +56,9 @@ from ..sampled.check import verified_samples
 from ..sampled.zoh import plan_time_optimal_zoh
 from .level import MAP_WIDTH, BeyondCap, Level, OutOfTime, extrapolate
 from .limits import Limits, check_limits
-from .lp import LimitLP, LPUndecided, Segments
+from .lp import LimitLP, LPUndecided
 from .proof import prove_impossible
+from .segments import Segments
 
 #: Give up (raise) beyond this many times the unlimited sample count.
 MAX_FACTOR = 64

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lp import LPSolution, Segments
+from .segments import LPSolution, Segments
 
 #: Steps of a reference profile within this (normalised command) of 0 or one slew step form a run.
 STEP_TOL = 1e-6

@@ -45,7 +45,8 @@ from ..config import (
 )
 from ..errors import ConfigError, GoalError
 from ..model.modal_model import ModalModel
-from ..parameters import MAX_MOVE_DURATION_S, MAX_MOVE_SAMPLES, check_required_options
+from ..parameter_checks import check_required_options
+from ..parameters import MAX_MOVE_DURATION_S, MAX_MOVE_SAMPLES
 from ..time_optimal.rigid_body import rigid_time
 from .methods import check_multi_method
 from .model import MultiModel

@@ -32,8 +32,8 @@ from ..methods.common import check_move_budget
 from ..methods.table import plan_move
 from ..model.boundary import MoveProblem, state_to_rest
 from ..model.modal_model import ModalModel
+from ..parameter_checks import check_parameters
 from ..parameter_file import read_parameter_file
-from ..parameters import check_parameters
 from ..results import PlanResult
 from ..simulation.exact import modal_amplitudes
 from .config import MultiPlannerConfig, check_multi_move_budget, multi_config_from_parameters

@@ -553,3 +553,27 @@ def test_a_spent_planning_budget_claims_nothing(monkeypatch):
     with pytest.raises(SolverError, match="planning budget.*not proved impossible") as info:
         plan_move(config, problem, 10.0)
     assert "\n" not in str(info.value)
+
+
+def test_windows_do_not_free_a_chattering_limit_arc():
+    """The next level's windows come from the smoothest sequence, in window LPs too.
+
+    Riding a deflection limit, an LP vertex chatters between two levels; taken as the
+    reference structure, every chattering stretch was freed at the next level, four times
+    longer (bench/fuel_limits.py's 2 m move: 936 free samples at 1 kHz, seconds per LP).
+    At 250 Hz the final window LP had 381 free samples before, 261 now; the plan is
+    still exact, within every limit, and proved fewest (checked independently).
+    """
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 250.0
+    dt = 1.0 / rate
+    unlimited = plan_time_optimal_zoh(problem, rate)
+    peak_q = float(np.max(np.abs(unlimited.states[:, 2])))
+    limits = Limits(deflection_max=(0.6 * peak_q,))
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert r.extra["levels_hz"] == [15.625, 62.5, 250.0]
+    assert r.extra["free_samples"] < 300
+    check_every_limit(problem, r, limits)
+    K = r.sampled.samples
+    assert r.minimal and r.lower_bound_samples == K
+    assert not feasible_state_space(problem, K - 1, dt, limits)

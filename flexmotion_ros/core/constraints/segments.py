@@ -1,0 +1,70 @@
+"""What the limited planner's linear programs are over and what they return: :class:`Segments`, :class:`LPSolution`.
+
+The ``K`` commands of a limit LP (:mod:`.lp`) are free variables or share a
+*level* over a run (:class:`Segments`: constant, or a ramp at the slew limit);
+:class:`LPSolution` is one solve's commands, scale ``t`` and the dual values
+the weak-duality bound of :mod:`.dual` needs, with its limit rows identified
+by kind (:data:`STATE`, :data:`CUT`, :data:`SLEW`), sample and index.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Row kinds in :class:`LPSolution`.
+STATE, CUT, SLEW = 0, 1, 2
+
+
+@dataclass
+class Segments:
+    """Parametrisation of ``K`` commands: runs ``[start, end)`` sharing a level; the rest free.
+
+    ``slope`` per run: 0 (constant level) or ``+-1`` (slew ramp: ``+-t`` slew
+    steps per sample on top of the level).  Runs never touch the first or
+    last sample.
+    """
+
+    K: int
+    start: np.ndarray
+    end: np.ndarray
+    slope: np.ndarray
+
+    @classmethod
+    def all_free(cls, K: int) -> Segments:
+        e = np.zeros(0, dtype=int)
+        return cls(K, e, e.copy(), np.zeros(0))
+
+    @classmethod
+    def from_runs(cls, K: int, runs: list[tuple[int, int, float]]) -> Segments:
+        runs = sorted((int(a), int(b), float(s)) for a, b, s in runs if 1 <= a < b <= K - 1)
+        return cls(
+            K, np.array([r[0] for r in runs], int), np.array([r[1] for r in runs], int), np.array([r[2] for r in runs])
+        )
+
+    def run_of(self) -> np.ndarray:
+        """Run index of every sample, -1 for free samples."""
+        out = np.full(self.K, -1)
+        for r, (a, b) in enumerate(zip(self.start, self.end)):
+            out[a:b] = r
+        return out
+
+    @property
+    def n_free(self) -> int:
+        return int(self.K - np.sum(self.end - self.start))
+
+
+@dataclass
+class LPSolution:
+    """One solve: commands, scale and the dual values the weak-duality bound needs."""
+
+    K: int
+    u: np.ndarray  # commands (N), forward order
+    t: float
+    nu: np.ndarray  # multipliers of the (scaled) arrival rows
+    rows: np.ndarray  # included limit rows: (kind, k, index, sign), shape (R, 4)
+    s: np.ndarray  # offset within the interval of cut rows (s)
+    lam: np.ndarray  # their multipliers (>= 0)
+    segments: Segments
+    levels: np.ndarray
