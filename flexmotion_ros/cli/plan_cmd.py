@@ -53,7 +53,7 @@ def config_from_args(args: argparse.Namespace):
     """The file's parameters with ``--method``, ``--robust-order`` and ``--option`` applied, checked once.
 
     Every name must be known and every value of its ROS type
-    (:func:`~flexmotion_ros.core.parameters.check_parameters`, the nodes' check
+    (:func:`~flexmotion_ros.core.parameter_checks.check_parameters`, the nodes' check
     too): ``--option`` values are typed by rcl's rules, as ``-p NAME:=VALUE`` is.
     """
     params = read_parameter_file(args.config, "flexmotion_planner")

@@ -17,7 +17,7 @@ The same file serves ``flexmotion plan --config FILE`` and the nodes
 Nested keys are ROS parameter names with dots (``model.b0``).  The file is
 read and written by :mod:`.parameter_file` (rcl's typing rules, without ROS);
 :func:`load_config` then refuses unknown names and wrong types
-(:func:`~flexmotion_ros.core.parameters.check_parameters`, the check the nodes
+(:func:`~flexmotion_ros.core.parameter_checks.check_parameters`, the check the nodes
 run on their start-up parameters too) before building the configuration.
 """
 
@@ -308,7 +308,7 @@ def config_from_parameters(params: Mapping[str, Any]) -> PlannerConfig:
     kept in ``options`` for the methods to validate.  This is the Python
     entry point and does not judge names or types: a parameter set from a
     file, ``--option`` or a node goes through
-    :func:`~flexmotion_ros.core.parameters.check_parameters` first
+    :func:`~flexmotion_ros.core.parameter_checks.check_parameters` first
     (:func:`load_config` and the nodes do), which refuses unknown names and
     wrong ROS types.
     """

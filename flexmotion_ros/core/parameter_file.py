@@ -14,7 +14,7 @@ Nested keys are ROS parameter names with dots (``model.b0``).  Every value is
 typed by rcl's own rules (:func:`~flexmotion_ros.core.parameters.rcl_scalar`:
 ``1`` is an integer, ``1.0`` a double) so that ``flexmotion plan`` and the
 nodes see the same types; names and types are judged afterwards by
-:func:`~flexmotion_ros.core.parameters.check_parameters`.
+:func:`~flexmotion_ros.core.parameter_checks.check_parameters`.
 """
 
 from __future__ import annotations

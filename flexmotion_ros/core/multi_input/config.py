@@ -192,7 +192,7 @@ def multi_config_from_parameters(params: Mapping[str, Any]) -> MultiPlannerConfi
     the plant, rclpy and the design command are dropped; the others are the
     method options.  As :func:`~flexmotion_ros.core.config.config_from_parameters`,
     names and ROS types are judged before, by
-    :func:`~flexmotion_ros.core.parameters.check_parameters`.
+    :func:`~flexmotion_ros.core.parameter_checks.check_parameters`.
 
     Raises
     ------
