@@ -124,22 +124,23 @@ def stream_priority(args: argparse.Namespace) -> int:
     return 0
 
 
-def rss_mb(pid: int) -> float:
-    """Resident set size (MB) of process ``pid`` (Linux)."""
-    with open(f"/proc/{pid}/status") as f:
+def proc_mb(path: str, field: str) -> float:
+    """A ``kB`` field (``VmRSS:``, ``Pss:``) of a /proc file in MB (Linux)."""
+    with open(path) as f:
         for line in f:
-            if line.startswith("VmRSS:"):
+            if line.startswith(field):
                 return int(line.split()[1]) / 1024.0
     return math.nan
+
+
+def rss_mb(pid: int) -> float:
+    """Resident set size (MB) of process ``pid``."""
+    return proc_mb(f"/proc/{pid}/status", "VmRSS:")
 
 
 def pss_mb(pid: int) -> float:
-    """Proportional set size (MB) of process ``pid``: shared pages split among their sharers (Linux)."""
-    with open(f"/proc/{pid}/smaps_rollup") as f:
-        for line in f:
-            if line.startswith("Pss:"):
-                return int(line.split()[1]) / 1024.0
-    return math.nan
+    """Proportional set size (MB) of process ``pid``: shared pages split among their sharers."""
+    return proc_mb(f"/proc/{pid}/smaps_rollup", "Pss:")
 
 
 def family_pss_mb(pid: int) -> float:

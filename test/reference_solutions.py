@@ -323,6 +323,13 @@ def bang_bang_final_error(problem: MoveProblem, profile) -> float:
     return float(np.max(np.abs(dev[-1]) / np.where(scale > 0, scale, 1.0)))
 
 
+def assert_certified_exact(problem: MoveProblem, profile) -> None:
+    """A returned time-optimal profile: certified, at the target at rest by our own expm, within the bound."""
+    assert profile.certified, profile.certificate.message
+    assert bang_bang_final_error(problem, profile) <= 1e-9
+    assert np.all(np.abs(profile.levels) <= problem.u_max)
+
+
 def sampled_final_error(problem: MoveProblem, commands, dt: float, reach: bool = False) -> float:
     """Final-state error of a command sequence relative to each state's excursion (own expm).
 

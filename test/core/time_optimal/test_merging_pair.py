@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from reference_solutions import bang_bang_final_error
+from reference_solutions import assert_certified_exact, bang_bang_final_error
 
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.model.boundary import state_to_rest
@@ -85,9 +85,7 @@ def test_the_fast_path_answers_certified(index):
     model, u_max, x0, target = CASES[index]
     problem = state_to_rest(model, u_max, np.asarray(x0), target)
     profile = plan_time_optimal(problem)
-    assert profile.certified, profile.certificate.message
-    assert bang_bang_final_error(problem, profile) <= 1e-9
-    assert np.all(np.abs(profile.levels) <= u_max)
+    assert_certified_exact(problem, profile)
     assert profile.extra["solver_path"] is SolverPath.FAST
 
 

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 import pytest
-from reference_solutions import bang_bang_final_error
+from reference_solutions import assert_certified_exact
 
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.model.boundary import state_to_rest
@@ -81,9 +81,7 @@ def test_the_moves_plan_certified(index):
     model, u_max, x0, target = CASES[index]
     problem = state_to_rest(model, u_max, np.asarray(x0), target)
     profile = plan_time_optimal(problem)
-    assert profile.certified, profile.certificate.message
-    assert bang_bang_final_error(problem, profile) <= 1e-9
-    assert np.all(np.abs(profile.levels) <= u_max)
+    assert_certified_exact(problem, profile)
 
 
 #: bench/fuzz.py, seed 15, cases 2109 (8 modes at rest: refused on c32a8c3, "missed the target 4.4e-02")
@@ -121,6 +119,4 @@ def test_many_mode_moves_at_rest_plan_certified(index):
     model, u_max, x0, target = HARD[index]
     problem = state_to_rest(model, u_max, np.asarray(x0), target)
     profile = plan_time_optimal(problem)
-    assert profile.certified, profile.certificate.message
-    assert bang_bang_final_error(problem, profile) <= 1e-9
-    assert np.all(np.abs(profile.levels) <= u_max)
+    assert_certified_exact(problem, profile)
