@@ -35,17 +35,22 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def wait_for_planner(probe) -> None:
+    """Until the planner reads our goals and its stream process's writer has matched our commands reader."""
+    wait_for(lambda: probe.goal_pub.get_subscription_count() >= 1, 30.0, "the planner's ~/goal")
+    wait_for(
+        lambda: (st := probe.planner_status()) is not None and int(st[2]["command_subscribers"]) >= 1,
+        30.0,
+        "the planner matching our commands subscription (writer side, in the stream process)",
+    )
+
+
 def test_the_planner_killed_mid_move_the_stream_process_sends_the_hold_and_ends(ros):
     # in-process stream (the old main): SIGKILL leaves the last command at full force, no hold follows
     probe = ros.probe
     proc = planner_process(ROOT)
     try:
-        wait_for(lambda: probe.goal_pub.get_subscription_count() >= 1, 30.0, "the planner's ~/goal")
-        wait_for(
-            lambda: (st := probe.planner_status()) is not None and int(st[2]["command_subscribers"]) >= 1,
-            30.0,
-            "the planner matching our commands subscription (writer side, in the stream process)",
-        )
+        wait_for_planner(probe)
         children = _children(proc.pid)
         assert len(children) == 3, children  # planning: goals and stops; the stream
         probe.goal_pub.publish(Float64(data=1.0))
@@ -82,12 +87,7 @@ def test_a_real_time_stream_process_publishes_asynchronously(ros):
     probe = ros.probe
     proc = planner_process(ROOT, "stream_priority:=50")
     try:
-        wait_for(lambda: probe.goal_pub.get_subscription_count() >= 1, 30.0, "the planner's ~/goal")
-        wait_for(
-            lambda: (st := probe.planner_status()) is not None and int(st[2]["command_subscribers"]) >= 1,
-            30.0,
-            "the planner matching our commands subscription (writer side, in the stream process)",
-        )
+        wait_for_planner(probe)
         streams = [c for c in _children(proc.pid) if any(n.startswith("dds.") for n in _thread_names(c))]
         assert len(streams) == 1, streams  # the stream process: the only child with a DDS participant
         names = _thread_names(streams[0])
