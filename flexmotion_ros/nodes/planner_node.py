@@ -111,7 +111,6 @@ from nav_msgs.srv import GetPlan
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -139,7 +138,8 @@ from .planner_identify import IdentifyHandling
 from .planner_lifecycle import LifecycleTransitions
 from .planner_output import OutputGlue, check_output
 from .planner_parameters import PLANNER_NODE_ONLY, planner_config, planner_specs
-from .planner_status import DIAGNOSTIC_NAME, StatusReporter
+from .planner_qos import COMMAND_QOS, GOAL_QOS, LATCHED_QOS
+from .planner_status import DIAGNOSTIC_NAME, StatusGlue, StatusReporter
 from .planner_stops import StopHandling
 from .planner_stream import StreamGlue
 from .runner import run
@@ -149,19 +149,6 @@ NODE_NAME = "flexmotion_planner"
 #: Installed segments kept for inspection (``PlannerNode.installed``).
 INSTALLED_KEPT = 32
 
-#: ``commands``: reliable and deep (10 s at 1 kHz), so that a lagging lockstep plant never loses a sample.
-COMMAND_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-#: ``~/goal``, ``~/joint_trajectory``: deep enough that a burst reaches the node, which keeps the newest goal and
-#: counts the others as superseded on /diagnostics (nothing is dropped unseen in DDS).
-GOAL_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-#: ``~/planned_trajectory``: late joiners get the current plan.
-LATCHED_QOS = QoSProfile(
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    history=HistoryPolicy.KEEP_LAST,
-)
-
 
 class PlannerNode(
     OutputGlue,
@@ -170,6 +157,7 @@ class PlannerNode(
     StopHandling,
     IdentifyHandling,
     StreamGlue,
+    StatusGlue,
     LifecycleTransitions,
     LifecycleNode,
 ):
@@ -385,7 +373,6 @@ class PlannerNode(
             state_machine.destroy_when_not_in_use()
         self._unfreeze_gc()
 
-    # --------------------------------------------------------------- lifecycle
     # ------------------------------------------------------------- parameters
     def _values(self) -> dict[str, Any]:
         return declared_values(
@@ -424,70 +411,6 @@ class PlannerNode(
     def config(self) -> AnyConfig:
         """The configuration the next goal is planned with."""
         return self._config
-
-    # -------------------------------------------------------------- interfaces
-    # ---------------------------------------------------------------- planning
-    # ------------------------------------------------------------- ready stops
-    # ----------------------------------------------------------- stream events
-    # -------------------------------------------------------------- diagnostics
-    def _status_context(self) -> dict[str, Any]:
-        """The node's own values of the status on /diagnostics (after state, planning, last_error, target)."""
-        return {
-            "position_at_rest": self._position if np.ndim(self._position) == 0 else positions_text(self._position),
-            "rate_hz": self._config.rate_hz,
-            "method": self._config.method,
-            "u_max": self._config.u_max if np.ndim(self._config.u_max) == 0 else bounds_text(self._config),
-            "modes": self._config.model.n_modes,
-            "command_joints": ",".join(self._joint_names),  # the joints of 'commands', in order
-            "command_subscribers": self.commands_publisher.get_subscription_count(),
-            "streaming_ready": self._command_subscribers > 0,
-            "replan_lead_samples": self._lead_samples(),
-            "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
-            "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
-            "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
-            **self._output_status(),
-            **self._collector_status(),
-            **self._feedback_status(),
-            **self._identification_values(),
-        }
-
-    def _collector_status(self) -> dict[str, Any]:
-        """Garbage collections run in the stream's slack per generation, and how many were forced (if enabled)."""
-        col = self._collector
-        if not col.enabled:
-            return {}
-        return {
-            "gc_in_slack": "/".join(str(n) for n in col.collections),
-            "gc_forced": "/".join(str(n) for n in col.forced),
-        }
-
-    def _check_streaming_ready(self) -> None:
-        """Say when ``commands`` gets (or loses) its first subscriber, judged on the writer side (status thread).
-
-        A late joiner may be matched only seconds after it starts (Fast DDS
-        announces every ~3.6 s): the writer's matched count, not the reader's,
-        says when samples published from now on reach it.
-        """
-        stream = getattr(self, "stream", None)
-        if stream is not None and stream.idle and not stream.hold_when_idle:
-            self._collector.idle()  # a silent idle stream has no deadline: collect what is due here
-        n = self.commands_publisher.get_subscription_count()
-        before, self._command_subscribers = self._command_subscribers, n
-        if n > 0 and before == 0:
-            topic = self.commands_publisher.topic_name
-            self.get_logger().info(f"streaming ready: '{topic}' matched by {n} subscriber(s) (writer side)")
-            self.publish_diagnostics()
-        elif n == 0 and before > 0:
-            self.get_logger().warning("'commands' lost its last subscriber: goals are refused until one matches")
-            self.publish_diagnostics()
-
-    def status(self) -> tuple[int, str, dict[str, Any]]:
-        """``(level, message, values)`` of the status on /diagnostics."""
-        return self._status.status()
-
-    def publish_diagnostics(self) -> None:
-        """Publish the status on /diagnostics now."""
-        self._status.publish()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,6 +22,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 
+from ..core.multi_input.dispatch import bounds_text, positions_text
 from . import messages
 
 DIAGNOSTIC_NAME = "flexmotion_planner: motion"
@@ -225,4 +226,72 @@ class StatusReporter:
         )
 
 
-__all__ = ["DIAGNOSTIC_NAME", "StatusReporter"]
+class StatusGlue:
+    """The planner node's side of its status (a mixin of :class:`~.planner_node.PlannerNode`).
+
+    The values only the node knows (configuration, subscribers, ready stops,
+    goals superseded), the writer-side readiness check the status thread
+    ticks, and the publishing entry points the other mixins call.
+    """
+
+    def _status_context(self) -> dict[str, Any]:
+        """The node's own values of the status on /diagnostics (after state, planning, last_error, target)."""
+        return {
+            "position_at_rest": self._position if np.ndim(self._position) == 0 else positions_text(self._position),
+            "rate_hz": self._config.rate_hz,
+            "method": self._config.method,
+            "u_max": self._config.u_max if np.ndim(self._config.u_max) == 0 else bounds_text(self._config),
+            "modes": self._config.model.n_modes,
+            "command_joints": ",".join(self._joint_names),  # the joints of 'commands', in order
+            "command_subscribers": self.commands_publisher.get_subscription_count(),
+            "streaming_ready": self._command_subscribers > 0,
+            "replan_lead_samples": self._lead_samples(),
+            "ready_stops": len(self._stops.ready()) if self._stops is not None else 0,
+            "goals_superseded": self._worker.superseded,  # by a newer goal before they were planned
+            "goals_cancelled": self._worker.cancelled,  # by a stop or a deactivation
+            **self._output_status(),
+            **self._collector_status(),
+            **self._feedback_status(),
+            **self._identification_values(),
+        }
+
+    def _collector_status(self) -> dict[str, Any]:
+        """Garbage collections run in the stream's slack per generation, and how many were forced (if enabled)."""
+        col = self._collector
+        if not col.enabled:
+            return {}
+        return {
+            "gc_in_slack": "/".join(str(n) for n in col.collections),
+            "gc_forced": "/".join(str(n) for n in col.forced),
+        }
+
+    def _check_streaming_ready(self) -> None:
+        """Say when ``commands`` gets (or loses) its first subscriber, judged on the writer side (status thread).
+
+        A late joiner may be matched only seconds after it starts (Fast DDS
+        announces every ~3.6 s): the writer's matched count, not the reader's,
+        says when samples published from now on reach it.
+        """
+        stream = getattr(self, "stream", None)
+        if stream is not None and stream.idle and not stream.hold_when_idle:
+            self._collector.idle()  # a silent idle stream has no deadline: collect what is due here
+        n = self.commands_publisher.get_subscription_count()
+        before, self._command_subscribers = self._command_subscribers, n
+        if n > 0 and before == 0:
+            topic = self.commands_publisher.topic_name
+            self.get_logger().info(f"streaming ready: '{topic}' matched by {n} subscriber(s) (writer side)")
+            self.publish_diagnostics()
+        elif n == 0 and before > 0:
+            self.get_logger().warning("'commands' lost its last subscriber: goals are refused until one matches")
+            self.publish_diagnostics()
+
+    def status(self) -> tuple[int, str, dict[str, Any]]:
+        """``(level, message, values)`` of the status on /diagnostics."""
+        return self._status.status()
+
+    def publish_diagnostics(self) -> None:
+        """Publish the status on /diagnostics now."""
+        self._status.publish()
+
+
+__all__ = ["DIAGNOSTIC_NAME", "StatusGlue", "StatusReporter"]
