@@ -97,19 +97,34 @@ def test_a_six_mode_um_zvd_is_checked_by_its_factors_not_piece_by_piece(monkeypa
     t=st.lists(st.floats(0.0, 10.0), min_size=1, max_size=40),
     dup=st.lists(st.integers(0, 39), max_size=10),
 )
-def test_merging_impulses_groups_as_the_loop_did(t, dup):
+def test_merging_impulses_groups_by_the_definition(t, dup):
+    """Each group starts at the first impulse past the previous group's start + tol and sums what it covers.
+
+    Checked against the definition, not against a copy of the loop ``group_impulses`` falls back to.
+    """
     from flexmotion_ros.core.shaping.shaper import group_impulses
 
     t = np.array(t + [t[i % len(t)] + 1e-13 * (k % 3) for k, i in enumerate(dup)])
     t.sort()
     a = np.arange(1.0, t.size + 1.0)
     tol = 1e-12 * max(float(t[-1]), 1e-300)
-    keep_t, keep_a = [t[0]], [a[0]]
-    for ti, ai in zip(t[1:], a[1:]):
-        if ti - keep_t[-1] <= tol:
-            keep_a[-1] += ai
-        else:
-            keep_t.append(ti)
-            keep_a.append(ai)
     gt, ga = group_impulses(t, a, tol)
-    assert np.array_equal(gt, keep_t) and np.allclose(ga, keep_a, rtol=1e-15)
+    assert gt[0] == t[0] and ga.shape == gt.shape
+    for j, start in enumerate(gt):
+        covered = (t >= start) & (t <= start + tol)
+        assert ga[j] == pytest.approx(a[covered].sum(), rel=1e-15)
+        later = t[t > start + tol]
+        if j + 1 < gt.size:
+            assert gt[j + 1] == later[0]  # the next group starts at the first impulse it does not cover
+        else:
+            assert later.size == 0
+    assert ga.sum() == pytest.approx(a.sum(), rel=1e-15)
+
+
+def test_a_chain_of_near_coincident_impulses_is_split_at_tol_from_each_group_start():
+    from flexmotion_ros.core.shaping.shaper import group_impulses
+
+    tol = 1e-12
+    t = np.array([0.0, 0.6, 1.2, 1.8, 2.4]) * tol  # every gap <= tol, the chain spans 2.4 tol
+    gt, ga = group_impulses(t, np.ones(5), tol)
+    assert np.array_equal(gt, t[[0, 2, 4]]) and np.array_equal(ga, [2.0, 2.0, 1.0])
