@@ -341,6 +341,8 @@ class _Child:
             "after_sample": after_sample,
             "on_idle": on_idle,
         }
+        if trace is not None:
+            common["sleep"] = trace.sleep  # which CPU, and what the thread went through inside the sleep
         stream: Any
         if cfg.output is not None:
             stream = ChildOutputStream(
@@ -420,6 +422,7 @@ def serve(requests: int, answers: int, events: int, progress: SharedProgress, op
                     pass
             if not ready:
                 continue
+            t_request = time.monotonic()
             try:
                 msg = recv(requests)
             except (EOFError, OSError):
@@ -438,6 +441,8 @@ def serve(requests: int, answers: int, events: int, progress: SharedProgress, op
                 send(answers, answer)
             except OSError:
                 return
+            if child.trace is not None:  # the only other Python thread that runs while the stream does
+                child.trace.request(op, t_request, time.monotonic())
     finally:
         child.end("the planner process ended")
 
