@@ -7,9 +7,12 @@ scheduler, another process, the hypervisor taking the CPU away), not the
 planner's.  The loop sleeps to absolute deadlines ``t0 + k / rate`` (as the
 stream thread does) and records each wake-up on the wall clock (ns, the time
 base of DDS source timestamps); on SIGINT/SIGTERM or after ``--seconds`` it
-writes them to ``--out`` (``.npy``, int64).
+writes them to ``--out`` (``.npy``, int64).  With ``--cpu`` it is pinned to
+that CPU: ``storm.py`` runs one per CPU, so that a stream gap can be compared
+with the CPU the stream thread slept and woke on (a stall of one virtual CPU
+is seen only by the threads that run on it).
 
-    python bench/deadline_probe.py --rate 1000 --seconds 10 --out /tmp/probe.npy --priority 50
+    python bench/deadline_probe.py --rate 1000 --seconds 10 --out /tmp/probe.npy --priority 50 --cpu 1
 """
 
 from __future__ import annotations
@@ -67,7 +70,10 @@ def main() -> None:
     p.add_argument("--seconds", type=float, default=600.0, help="longest run (s)")
     p.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority (0: normal scheduling)")
     p.add_argument("--out", required=True, help="where the wake-up instants go (.npy)")
+    p.add_argument("--cpu", type=int, default=-1, help="pin the loop to this CPU (-1: wherever the scheduler puts it)")
     a = p.parse_args()
+    if a.cpu >= 0:
+        os.sched_setaffinity(0, {a.cpu})  # before the priority: a SCHED_FIFO loop never runs elsewhere
     if a.priority > 0:
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(a.priority))

@@ -16,6 +16,18 @@ A gap between consecutive commands recorded by ``command_recorder.py``
   there): delivery or the receiver's side;
 * ``untraced``: no trace covers it.
 
+With one bare deadline loop pinned to each CPU beside the nodes
+(``deadline_probe.py --cpu``), each gap is also told a *machine stall* or not:
+``stall`` is ``same CPU`` when the loop pinned to a CPU the stream thread
+slept or woke on around the gap (the trace's ``cpu_slept`` / ``cpu_woke``) was
+late too (an interval over 1.5 periods overlapping the gap), ``other CPU``
+when only a loop on another CPU was, ``none`` when no loop was late, and
+``unknown`` without per-CPU loops or the thread's CPUs.  What the thread went
+through inside the sleep call that ended the gap comes with it
+(``sleep_switches``: 1 is the sleep itself, more is a block after the timer
+woke it -- the interpreter lock; ``sleep_run_delay_ms``, ``sleep_faults``), and
+the stream process's requests handled during the gap (``requests``).
+
     python bench/gap_trace.py /tmp/flexmotion_storm_xxxx     # a storm's log directory: its gaps, explained
 """
 
@@ -32,19 +44,61 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from flexmotion_ros.execution.stream_trace import (  # noqa: E402
     COLLECTED,
     COLUMNS,
+    CPU_SLEPT,
+    CPU_WOKE,
     DEADLINE,
     MATCHED_END,
     PUBLISH_NS,
     PUBLISHED,
+    REQUEST_COLUMNS,
+    REQUEST_OPS,
     RUN_DELAY_AFTER,
     RUN_DELAY_BEFORE,
     SLACK_START,
+    SLEEP_FAULTS,
+    SLEEP_PREEMPTED,
+    SLEEP_RUN_DELAY,
+    SLEEP_RUNS,
+    SLEEP_SWITCHES,
     STEP_END,
+    STEP_FAULTS,
     WOKE,
+    requests_path,
 )
 
+#: A bare loop's interval over this many periods, overlapping a gap, makes it late too.
+PROBE_LATE_PERIODS = 1.5
 
-def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: np.ndarray | None = None) -> list[dict]:
+
+def longest_interval(probe_ns: np.ndarray, start_ns: int, end_ns: int) -> float | None:
+    """The longest interval (ms) between the bare loop's wake-ups that overlaps ``[start_ns, end_ns]`` (None: none)."""
+    p = np.asarray(probe_ns, dtype=np.int64)
+    if p.size < 2:
+        return None
+    lo = max(int(np.searchsorted(p, start_ns)) - 1, 0)
+    hi = min(int(np.searchsorted(p, end_ns)) + 1, p.size)
+    return round(float(np.diff(p[lo:hi]).max()) * 1e-6, 2) if hi - lo > 1 else None
+
+
+def stall_of(cpus: set[int], late_ms: dict[int, float | None], late_over_ms: float) -> str:
+    """``same CPU``, ``other CPU``, ``none`` or ``unknown`` (module docstring) from each pinned loop's interval."""
+    if not late_ms or not cpus:
+        return "unknown"
+    late = {c for c, ms in late_ms.items() if ms is not None and ms > late_over_ms}
+    if late & cpus:
+        return "same CPU"
+    return "other CPU" if late else "none"
+
+
+def classify(
+    t_ns: np.ndarray,
+    trace: np.ndarray,
+    threshold_ns: int,
+    probe_ns: np.ndarray | None = None,
+    *,
+    probes_by_cpu: dict[int, np.ndarray] | None = None,
+    requests: np.ndarray | None = None,
+) -> list[dict]:
     """Every gap over ``threshold_ns`` in the received send times ``t_ns`` (ns), with its cause (module docstring).
 
     Parameters
@@ -58,6 +112,11 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: n
     probe_ns : ndarray, optional
         Wake-ups of the bare deadline loop beside the nodes (``deadline_probe.py``, ns): each gap then gets
         ``probe_ms``, the longest interval of the loop's that overlaps it (one period: the loop was on time).
+    probes_by_cpu : dict, optional
+        CPU -> wake-ups (ns) of a bare loop pinned to it: each gap then gets ``probe_ms_by_cpu`` and ``stall``
+        (module docstring); ``probe_ms``, if not given by ``probe_ns``, is their longest.
+    requests : ndarray, shape (r, 3), optional
+        The stream process's request record (:data:`~flexmotion_ros.execution.stream_trace.REQUEST_COLUMNS`).
 
     Returns
     -------
@@ -65,7 +124,9 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: n
         ``at_ns``, ``ms`` (the received gap), ``own_ms`` (the sender's gap over the same samples), ``wake_late_ms``,
         ``prev_step_ms`` (the step before: wake-up to its end; its parts ``prev_callbacks_ms``, ``prev_matched_ms``,
         ``prev_collect_ms``, ``prev_collected``: the generation collected, -1 none), ``publish_ms`` (the sample after
-        the gap), ``cause``.
+        the gap), ``cause``; with the trace's sleep columns ``cpu_slept``, ``cpu_woke``, ``sleep_switches``,
+        ``sleep_preempted``, ``sleep_runs``, ``sleep_run_delay_ms``, ``sleep_faults``, ``prev_step_faults``,
+        ``requests``; and ``stall`` (``unknown`` without pinned loops).
     """
     t = np.asarray(t_ns, dtype=np.int64)
     out: list[dict] = []
@@ -74,15 +135,22 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: n
     sent = trace[:, PUBLISH_NS].astype(np.int64) if len(trace) else np.zeros(0, np.int64)
     period = np.median(np.diff(trace[:, DEADLINE])) if len(trace) > 2 else 0.0
     p = np.asarray(probe_ns if probe_ns is not None else [], dtype=np.int64)
+    by_cpu = {int(c): np.asarray(v, dtype=np.int64) for c, v in (probes_by_cpu or {}).items()}
+    late_over_ms = PROBE_LATE_PERIODS * threshold_ns * 0.5e-6
+    wide = trace.shape[1] > STEP_FAULTS if trace.ndim == 2 else False  # a trace with the sleep columns
+    req = np.asarray(requests if requests is not None else np.zeros((0, len(REQUEST_COLUMNS))))
     for i in np.flatnonzero(np.diff(t) > threshold_ns):
-        gap = {"at_ns": int(t[i]), "ms": round((t[i + 1] - t[i]) * 1e-6, 2)}
+        gap: dict = {"at_ns": int(t[i]), "ms": round((t[i + 1] - t[i]) * 1e-6, 2)}
         if p.size > 1:
-            lo = max(int(np.searchsorted(p, t[i])) - 1, 0)
-            hi = min(int(np.searchsorted(p, t[i + 1])) + 1, p.size)
-            gap["probe_ms"] = round(float(np.diff(p[lo:hi]).max()) * 1e-6, 2) if hi - lo > 1 else None
+            gap["probe_ms"] = longest_interval(p, int(t[i]), int(t[i + 1]))
+        if by_cpu:
+            gap["probe_ms_by_cpu"] = {c: longest_interval(v, int(t[i]), int(t[i + 1])) for c, v in by_cpu.items()}
+            if p.size <= 1:
+                known = [ms for ms in gap["probe_ms_by_cpu"].values() if ms is not None]
+                gap["probe_ms"] = max(known) if known else None
         j = int(np.searchsorted(sent, t[i], side="right")) - 1
         if j < 0 or j + 1 >= len(sent) or t[i] - sent[j] > threshold_ns:
-            out.append({**gap, "cause": "untraced"})
+            out.append({**gap, "cause": "untraced", "stall": stall_of(set(), gap.get("probe_ms_by_cpu", {}), 0.0)})
             continue
         a, b = trace[j], trace[j + 1]
         own_ms = (sent[j + 1] - sent[j]) * 1e-6
@@ -120,7 +188,34 @@ def classify(t_ns: np.ndarray, trace: np.ndarray, threshold_ns: int, probe_ns: n
                 "cause": cause,
             }
         )
+        if wide:
+            # a late wake: where it slept (its timer) and woke; otherwise the step before ran late too, where it woke
+            around = (b[CPU_SLEPT], b[CPU_WOKE]) if cause == "late wake" else (a[CPU_WOKE], b[CPU_SLEPT], b[CPU_WOKE])
+            cpus = {int(c) for c in around if c >= 0}
+            during = (req[:, 2] >= a[STEP_END]) & (req[:, 1] <= b[WOKE]) if len(req) else np.zeros(0, bool)
+            out[-1].update(
+                cpu_slept=int(b[CPU_SLEPT]),
+                cpu_woke=int(b[CPU_WOKE]),
+                sleep_switches=int(b[SLEEP_SWITCHES]),
+                sleep_preempted=int(b[SLEEP_PREEMPTED]),
+                sleep_runs=int(b[SLEEP_RUNS]),
+                sleep_run_delay_ms=round(b[SLEEP_RUN_DELAY] * 1e-6, 2),
+                sleep_faults=int(b[SLEEP_FAULTS]),
+                prev_step_faults=int(a[STEP_FAULTS]),
+                requests=[REQUEST_OPS[int(o)] if 0 <= o < len(REQUEST_OPS) else "?" for o in req[during, 0]],
+                stall=stall_of(cpus, gap.get("probe_ms_by_cpu", {}), late_over_ms),
+            )
+        else:
+            out[-1]["stall"] = stall_of(set(), gap.get("probe_ms_by_cpu", {}), late_over_ms)
     return out
+
+
+def stall_counts(explained: list[dict]) -> dict[str, int]:
+    """How many of the gaps :func:`classify` explained were each ``stall`` (``same CPU``: a machine stall)."""
+    counts: dict[str, int] = {}
+    for g in explained:
+        counts[g.get("stall", "unknown")] = counts.get(g.get("stall", "unknown"), 0) + 1
+    return counts
 
 
 def own_gaps(trace: np.ndarray, threshold_ns: int, until_ns: int | None = None) -> np.ndarray:
@@ -153,7 +248,11 @@ def main() -> None:
     t = np.load(d / "commands.npz")["send_ns"]
     trace = np.load(d / "stream_trace.npy") if (d / "stream_trace.npy").exists() else np.zeros((0, len(COLUMNS)))
     log = (d / "planner.log").read_text() if (d / "planner.log").exists() else ""
-    for g in classify(t, trace, int(2e9 / a.rate)):
+    by_cpu = {int(f.stem.removeprefix("probe_cpu")): np.load(f) for f in d.glob("probe_cpu*.npy")}
+    req_file = Path(requests_path(str(d / "stream_trace.npy")))
+    requests = np.load(req_file) if req_file.exists() else None
+    probe = np.load(d / "probe.npy") if (d / "probe.npy").exists() else None
+    for g in classify(t, trace, int(2e9 / a.rate), probe, probes_by_cpu=by_cpu, requests=requests):
         print(g)
         for line in log_near(log, g["at_ns"], a.window):
             print("    ", line)

@@ -27,8 +27,10 @@ It reports, per mode:
   planner (DDS source timestamps, recorded by ``command_recorder.py`` in a
   process of its own; the stream holds while idle), against two periods;
   and beside it a bare deadline loop (``deadline_probe.py``) at the same
-  rate and priority: a stream gap that overlaps one of the loop's is the
-  machine's (counted apart), as is the hypervisor's stolen time;
+  rate and priority, one pinned to each CPU: a stream gap during which the
+  loop pinned to the CPU the stream thread slept or woke on was late too is
+  a machine stall (counted apart, ``gaps_machine_stall``), as is the
+  hypervisor's stolen time;
 * settled lockstep moves at the target at rest (plant state, 1e-9);
 * the planner's RSS at the start and the end (and every 1000 requests), and optionally
   for a while after the storm (a transient the idle heap trim hands back, or growth).
@@ -66,7 +68,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 from deadline_probe import overlapping_gaps, steal_ticks  # noqa: E402 -- beside this script
-from gap_trace import classify, own_gaps  # noqa: E402 -- beside this script
+from gap_trace import classify, own_gaps, requests_path, stall_counts  # noqa: E402 -- beside this script
 
 RATE_HZ = 200.0
 LIMIT = 3.0
@@ -281,15 +283,18 @@ def run_mode(args, mode: str) -> dict:
         "planner_node", ns, params, list(args.planner_params), planner_log, {"FLEXMOTION_STREAM_TRACE": str(trace_out)}
     )
     storm = Storm(ns)
-    probe_out = tmp / "probe.npy"
-    probe = None
-    if not args.no_probe:
-        probe = subprocess.Popen(
+    # one bare loop pinned to each CPU: a stall of one virtual CPU is seen only by what runs on it
+    probe_outs = {} if args.no_probe else {c: tmp / f"probe_cpu{c}.npy" for c in sorted(os.sched_getaffinity(0))}
+    probes = [
+        subprocess.Popen(
             [sys.executable, str(ROOT / "bench" / "deadline_probe.py"), "--rate", repr(float(args.rate))]
             + ["--seconds", repr(args.max_seconds + 120.0), "--priority", str(stream_priority(args)), "--out"]
-            + [str(probe_out)]
+            + [str(out), "--cpu", str(c)]
         )
+        for c, out in probe_outs.items()
+    ]
     steal0 = steal_ticks()
+    load0 = [round(x, 2) for x in os.getloadavg()]
     out: dict = {"mode": mode, "requests": args.requests, "seed": args.seed, "rate_hz": float(args.rate)}
     stops: list[dict] = []
     invalid = {"sent": 0, "refused_answers": 0, "unrefused": []}
@@ -514,7 +519,7 @@ def run_mode(args, mode: str) -> dict:
             recorder.wait(timeout=20.0)
         except subprocess.TimeoutExpired:
             recorder.kill()
-        if probe is not None:
+        for probe in probes:
             probe.send_signal(signal.SIGINT)
             probe.wait(timeout=10.0)
     steal_s = (steal_ticks() - steal0) / os.sysconf("SC_CLK_TCK")
@@ -530,18 +535,30 @@ def run_mode(args, mode: str) -> dict:
     t = t[t < teardown_ns]
     gaps_ms = np.diff(t) * 1e-6 if t.size > 1 else np.array([0.0])
     two_periods_ns = int(2e9 / args.rate)
-    probe_ns = np.load(probe_out) if probe is not None and probe_out.exists() else np.zeros(0, dtype=np.int64)
-    if probe_ns.size > 1 and t.size > 1:
-        # the probe ran from before the first command to after the last: compare over the stream's span only
-        probe_ns = probe_ns[(probe_ns >= t[0]) & (probe_ns <= t[-1])]
-    _, shared = overlapping_gaps(t, probe_ns, two_periods_ns) if t.size > 1 else (None, np.zeros(0, bool))
-    probe_gaps_ms = np.diff(probe_ns) * 1e-6 if probe_ns.size > 1 else np.array([0.0])
+    by_cpu = {c: np.load(f) for c, f in probe_outs.items() if f.exists()}
+    if t.size > 1:  # the loops ran from before the first command to after the last: the stream's span only
+        by_cpu = {c: v[(v >= t[0]) & (v <= t[-1])] for c, v in by_cpu.items()}
+    shared = np.zeros(max(int(np.sum(np.diff(t) > two_periods_ns)), 0) if t.size > 1 else 0, dtype=bool)
+    for v in by_cpu.values():  # a stream gap overlapping a gap of any of the loops (before they were pinned: the one)
+        if t.size > 1:
+            shared |= overlapping_gaps(t, v, two_periods_ns)[1]
+    probe_by_cpu = {
+        c: {
+            "wakes": int(v.size),
+            "gaps_over_two_periods": int(np.sum(np.diff(v) > two_periods_ns)) if v.size > 1 else 0,
+            "gap_max_ms": float(np.diff(v).max() * 1e-6) if v.size > 1 else 0.0,
+        }
+        for c, v in by_cpu.items()
+    }
     mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
     trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 11))
-    explained = classify(t, trace, two_periods_ns, probe_ns)
+    requests_out = Path(requests_path(str(trace_out)))
+    requests = np.load(requests_out) if requests_out.exists() else None
+    explained = classify(t, trace, two_periods_ns, probes_by_cpu=by_cpu, requests=requests)
     causes: dict[str, int] = {}
     for g in explained:
         causes[g["cause"]] = causes.get(g["cause"], 0) + 1
+    stalls = stall_counts(explained)
     sender = own_gaps(trace, two_periods_ns, teardown_ns) if len(trace) else np.zeros((0, 2))
     out.update(
         sent=sent,
@@ -576,6 +593,14 @@ def run_mode(args, mode: str) -> dict:
         gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / args.rate)[:40]],
         largest_gaps=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.argsort(gaps_ms)[::-1][:10]],
         gaps_shared_with_probe=int(shared.sum()),
+        # the loop pinned to the CPU the stream thread slept or woke on was late too: the machine stalled that CPU
+        gap_stalls=stalls,
+        gaps_machine_stall=stalls.get("same CPU", 0),
+        gaps_not_machine_stall=len(explained) - stalls.get("same CPU", 0),
+        gap_causes_machine_stall={
+            c: sum(g["cause"] == c and g["stall"] == "same CPU" for g in explained) for c in causes
+        },
+        gaps_not_machine_stall_explained=[g for g in explained if g["stall"] != "same CPU"][:40],
         gap_causes=causes,
         # the bare loop (another process) was late too during the gap: the machine stalled both (by cause)
         gap_causes_probe_late={
@@ -586,9 +611,12 @@ def run_mode(args, mode: str) -> dict:
         sender_gaps_over_two_periods=len(sender),
         sender_gap_max_ms=float(sender[:, 1].max()) if len(sender) else 0.0,
         traced_samples=len(trace),
-        probe_wakes=int(probe_ns.size),
-        probe_gaps_over_two_periods=int(np.sum(probe_gaps_ms > 2e3 / args.rate)),
-        probe_gap_max_ms=float(probe_gaps_ms.max()),
+        probe_by_cpu=probe_by_cpu,
+        probe_wakes=sum(v["wakes"] for v in probe_by_cpu.values()),
+        probe_gaps_over_two_periods=sum(v["gaps_over_two_periods"] for v in probe_by_cpu.values()),
+        probe_gap_max_ms=max((v["gap_max_ms"] for v in probe_by_cpu.values()), default=0.0),
+        load_average=[round(x, 2) for x in os.getloadavg()],
+        load_at_start=load0,
         steal_s=steal_s,
         gap_p999_ms=float(np.percentile(gaps_ms, 99.9)),
         settled_checked=len(settled),
@@ -618,6 +646,7 @@ def main() -> None:
             print(json.dumps(r))
         return
     load = os.getloadavg()
+    print(f"load average at the start of each mode: {[r['load_at_start'] for r in results]}")
     print(
         f"storm: {args.requests} requests per mode, seed {args.seed}, {args.rate:g} Hz two-mode machine, planner and "
         f"plant as processes; load average {load[0]:.1f} on {os.cpu_count()} CPUs"
@@ -652,12 +681,23 @@ def main() -> None:
             f"of them with the bare loop late too {r['gap_causes_probe_late']}"
         )
         if r["probe_wakes"]:
+            per_cpu = "; ".join(
+                f"CPU {c}: {v['wakes']} wake-ups, {v['gaps_over_two_periods']} gaps over two periods, max "
+                f"{v['gap_max_ms']:.1f} ms"
+                for c, v in r["probe_by_cpu"].items()
+            )
             print(
-                f"  bare deadline loop beside it {r['probe_wakes']} wake-ups; gap max {r['probe_gap_max_ms']:.1f} ms; "
-                f"gaps over two periods: {r['probe_gaps_over_two_periods']}; "
-                f"stream gaps overlapping one of them: {r['gaps_shared_with_probe']} of {r['gaps_over_two_periods']}; "
+                f"  bare deadline loops (pinned)  {per_cpu}; stream gaps overlapping one of theirs: "
+                f"{r['gaps_shared_with_probe']} of {r['gaps_over_two_periods']}; "
                 f"CPU stolen by the hypervisor meanwhile: {r['steal_s']:.2f} s"
             )
+            print(
+                f"  machine stalls               {r['gaps_machine_stall']} of {r['gaps_over_two_periods']} gaps (the "
+                f"loop pinned to the stream thread's CPU late too; by cause {r['gap_causes_machine_stall']}); not: "
+                f"{r['gaps_not_machine_stall']} {r['gap_stalls']}"
+            )
+            for g in r["gaps_not_machine_stall_explained"][:10]:
+                print(f"    not a machine stall: {g}")
         if r["mode"] == "lockstep":
             print(
                 f"  settled moves at rest        {r['settled_ok']}/{r['settled_checked']} at the target, at rest "

@@ -24,7 +24,7 @@ and logging):
 * :mod:`.replan` -- closed-loop replanning from an estimated state (:mod:`.replan_point`: where it starts).
 """
 
-from .command_stream import CommandStream, HaltCause, StreamHalt, StreamStep
+from .command_stream import CommandStream
 from .jtc import HeldPiece, TrajectoryPlayer, held_pieces, sample, started
 from .measured_state import MeasuredState, StateSettings, StateSource, state_settings, state_vector
 from .replan import ReplanOutcome, ReplanStatus, replan
@@ -44,6 +44,7 @@ from .splice import (
     longer_lead,
     splice_point,
 )
+from .stream_halt import HaltCause, StreamHalt, StreamStep
 from .summary import plan_summary
 from .timeline import HOLD, Segment, predicted_state
 from .trajectory import (

@@ -20,6 +20,9 @@ deactivation) or a fault in the stream thread (the publisher or a callback
 raised) -- the last command sent is the hold: a move in progress is cut off
 and one hold sample follows at once (:class:`StreamHalt` says what happened).
 A stopped stream can be started again (:meth:`CommandStream.start`).
+The halt and step types are :mod:`.stream_halt`'s, the timeline's queries and
+installation :mod:`.stream_timeline`'s, the send-time record
+:mod:`.sample_record`'s.
 
 The clock, the sleep and the "publish one sample" callable are injected:
 :meth:`CommandStream.start` runs :meth:`CommandStream.step` in a dedicated
@@ -32,167 +35,17 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from enum import Enum
 
-import numpy as np
-
-from .heap import resident_zeros
-from .timeline import HOLD, Segment, command_text, is_hold, predicted_state
+from .sample_record import RecordedTiming, SampleRecord
+from .stream_halt import HaltCause, StreamHalt, StreamStep
+from .stream_timeline import PlayedTimeline
+from .timeline import HOLD, Segment, is_hold
 
 #: How often ``on_idle`` runs while a silent stream sleeps (s).
 IDLE_TICK_S = 0.1
 
 
-@dataclass(frozen=True, kw_only=True)
-class StreamStep:
-    """What one step of the stream did.
-
-    Attributes
-    ----------
-    sample : int
-        Global sample index (samples).
-    deadline : float
-        When it was due (clock s).
-    time : float
-        When it was handled, after the sleep (clock s).
-    value : float or None
-        The command published (N); None if nothing was sent (idle, silent).
-    """
-
-    sample: int
-    deadline: float
-    time: float
-    value: float | None
-
-
-class StreamStopped(RuntimeError):
-    """A segment offered to a stream that has halted (shutdown, deactivation, a fault): nothing is installed.
-
-    A request still being planned when the node shuts down ends so: the caller
-    answers it as not planned, not as an internal failure.
-    """
-
-
-class HaltCause(Enum):
-    """Why the stream ended (the values are the strings the log shows)."""
-
-    STOPPED = "stopped"  # stop() was called: shutdown, deactivation
-    FAULT = "fault"  # the publisher or a callback raised in the stream thread
-
-
-@dataclass(frozen=True, kw_only=True)
-class StreamHalt:
-    """How the stream ended: the hold that closed it.
-
-    Attributes
-    ----------
-    cause : HaltCause
-        ``stopped`` (:meth:`CommandStream.stop`) or ``fault``.
-    why : str
-        The caller's reason (``"shutdown"``, ``"deactivated"``) or the fault (exception and message).
-    held : bool
-        The last command sent is the hold (:data:`~.timeline.HOLD`); False only if
-        publishing the hold failed too (see ``hold_error``).
-    hold_sent : bool
-        A hold sample was sent to end it (False: the last command sent was already the hold, or none was sent).
-    interrupted : bool
-        A move was in progress: its remaining commands were dropped.
-    sample : int
-        Global index (samples) of the next sample not sent.
-    last_value : float or None
-        The last command sent before the halt (N); None if none was ever sent.
-    hold_error : str
-        Why publishing the hold failed ("" if it did not).
-    """
-
-    cause: HaltCause
-    why: str
-    held: bool
-    hold_sent: bool
-    interrupted: bool
-    sample: int
-    last_value: float | None
-    hold_error: str = ""
-
-    def describe(self) -> str:
-        """One line for the log: what ended the stream and what the actuator got last."""
-        if self.hold_sent:
-            what = f"hold ({HOLD:g}) sent at sample {self.sample - 1}"
-        elif self.held:
-            what = f"the last command sent was already the hold ({HOLD:g})"
-        elif self.last_value is None:
-            what = "no command was ever sent"
-        else:
-            what = (
-                f"the hold could NOT be sent ({self.hold_error}); the last command sent was "
-                f"{command_text(self.last_value)}"
-            )
-        cut = "; the move in progress was cut off" if self.interrupted else ""
-        return f"command stream {self.cause.value} ({self.why}): {what}{cut}"
-
-
-class SampleRecord:
-    """The send time and lateness (s) of the last ``capacity`` samples, in a ring allocated once.
-
-    Constant memory from the start (2 x 8 bytes per sample; a deque of Python
-    floats grew the node by ~13 MB over its first 200,000 samples, which the
-    storm's RSS measured as a leak).  Appended by the stream thread, read by
-    others: a reader takes the count first, so it never sees a slot being
-    written except the newest.
-    """
-
-    def __init__(self, capacity: int) -> None:
-        self._buf = resident_zeros((max(1, int(capacity)), 2))  # resident now: a flat RSS
-        self._n = 0  # samples appended so far
-
-    def __len__(self) -> int:
-        return min(self._n, len(self._buf))
-
-    def append(self, time_s: float, late_s: float) -> None:
-        """Record one sample's send time and lateness (s)."""
-        row = self._buf[self._n % len(self._buf)]
-        row[0] = time_s
-        row[1] = late_s
-        self._n += 1
-
-    def last(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Send times and lateness of the ``n`` samples that end ``before`` samples ago (those still kept)."""
-        total, cap = self._n, len(self._buf)
-        end = max(0, total - max(0, before))
-        start = max(end - max(0, n), total - cap, 0)
-        rows = self._buf[np.arange(start, end) % cap]
-        return rows[:, 0].copy(), rows[:, 1].copy()
-
-
-class RecordedTiming:
-    """The timing read-outs of a stream that keeps a :class:`SampleRecord` as ``self._record``."""
-
-    _record: SampleRecord
-
-    def recent_timing(self, n: int, before: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Send times (clock s) and lateness (s) of the last ``n`` samples sent, ``before`` samples ago.
-
-        Both empty for ``n <= 1`` (a single sample has no period); at most
-        the samples kept.  ``before``: the samples sent since the window
-        ended (a report made later, off the stream thread).
-        """
-        if n <= 1:
-            return np.empty(0), np.empty(0)
-        return self._record.last(n, before)
-
-    @property
-    def sent_times(self) -> np.ndarray:
-        """Send times (clock s) of the samples kept, oldest first."""
-        return self._record.last(len(self._record))[0]
-
-    @property
-    def lateness(self) -> np.ndarray:
-        """Send time minus deadline (s) of the samples kept, oldest first."""
-        return self._record.last(len(self._record))[1]
-
-
-class CommandStream(RecordedTiming):
+class CommandStream(PlayedTimeline, RecordedTiming):
     """Publish one command per period, at absolute deadlines.
 
     Parameters
@@ -381,93 +234,6 @@ class CommandStream(RecordedTiming):
             self._hold_when_idle = bool(value)
             self._cond.notify_all()
 
-    # ----------------------------------------------------------------- timeline
-    def snapshot(self) -> tuple[int, list[Segment]]:
-        """``(k_next, segments)``: the next index to send (samples) and the queued timeline."""
-        with self._cond:
-            return self._k_next, list(self._queue)
-
-    def versioned_snapshot(self) -> tuple[int, list[Segment], int]:
-        """``(k_next, segments, version)``: :meth:`snapshot` and the timeline's version, read together.
-
-        The version counts the segments installed (:meth:`start_now`, :meth:`splice`): a plan made from a
-        snapshot is still valid to install only while the version is unchanged (two planners, one timeline).
-        """
-        with self._cond:
-            return self._k_next, list(self._queue), self._version
-
-    @property
-    def version(self) -> int:
-        """How many segments have been installed (the timeline's version)."""
-        with self._cond:
-            return self._version
-
-    @property
-    def idle(self) -> bool:
-        """No segment is queued."""
-        with self._cond:
-            return not self._queue
-
-    def predicted_state(self, k: int, segments: list[Segment] | None = None) -> np.ndarray | None:
-        """The state the timeline (default: the queued one) reaches at sample ``k`` (None if idle)."""
-        if segments is None:
-            _, segments = self.snapshot()
-        return predicted_state(segments, k)
-
-    def _check_not_halted(self) -> None:
-        if self._stop:
-            halt = self.halted
-            raise StreamStopped(
-                "the command stream is stopped" + (f" ({halt.cause.value}: {halt.why})" if halt is not None else "")
-            )
-
-    def start_now(self, segment: Segment) -> int:
-        """Start ``segment`` on the next sample of an idle stream; returns its start index (samples).
-
-        Raises
-        ------
-        RuntimeError
-            The stream is not idle, or it is stopped (:meth:`stop`, a fault).
-        """
-        with self._cond:
-            self._check_not_halted()
-            if self._queue:
-                raise RuntimeError("stream is not idle; splice instead")
-            self._rebase_if_sleeping()
-            segment.start = self._k_next
-            self._queue.append(segment)
-            self._version += 1
-            self._cond.notify_all()
-            return segment.start
-
-    def splice(self, segment: Segment, at: int) -> bool:
-        """Play ``segment`` from global sample ``at``, replacing whatever was planned from there.
-
-        Returns False (and changes nothing) if sample ``at`` has already been
-        sent (planning overran its look-ahead) or the stream went idle
-        meanwhile (then :meth:`start_now` applies).
-        """
-        with self._cond:
-            self._check_not_halted()
-            if not self._queue or at < self._k_next:
-                return False
-            self._queue = [s for s in self._queue if s.start < at]
-            segment.start = at
-            self._queue.append(segment)
-            self._version += 1
-            self._cond.notify_all()
-            return True
-
-    def time_of(self, k: int) -> float:
-        """Deadline (clock s) of global sample ``k``."""
-        with self._cond:
-            return self._t_anchor + (k - self._k_anchor) * self.dt
-
-    def anchor(self) -> tuple[float, int]:
-        """``(t_anchor, k_anchor)``: sample ``k_anchor`` is due at ``t_anchor`` (clock s); see :meth:`time_of`."""
-        with self._cond:
-            return self._t_anchor, self._k_anchor
-
     # --------------------------------------------------------------------- loop
     def step(self) -> StreamStep | None:
         """Handle the next sample: sleep until its deadline, then publish its command.
@@ -515,38 +281,6 @@ class CommandStream(RecordedTiming):
             self._after_sample(deadline + self.dt - self._clock())
         return StreamStep(sample=k, deadline=deadline, time=now, value=value)
 
-    def _sleeping(self) -> bool:
-        # idle and silent: nothing is due until start_now or the setter
-        return not self._queue and not self._hold_when_idle
-
-    def _rebase_if_sleeping(self) -> None:
-        # A silent idle stream sleeps; when work arrives, sample k_next is due now.
-        if self._sleeping():
-            self._t_anchor = self._clock()
-            self._k_anchor = self._k_next
-
-    def _next_value(self, k: int) -> tuple[float | None, Segment | None, Segment | None]:
-        """Command for sample ``k`` (None: send nothing), and the segment that starts / finishes."""
-        q = self._queue
-        while len(q) > 1 and q[1].start <= k:  # a splice takes over
-            q.pop(0)
-        idle_value = HOLD if self._hold_when_idle else None
-        if not q:
-            return idle_value, None, None
-        seg = q[0]
-        i = k - seg.start
-        if i < 0:  # waiting for a segment queued behind an ended one: at rest
-            return idle_value, None, None
-        if i < seg.samples:
-            return seg.command(i), (seg if i == 0 else None), None
-        if i == seg.samples:  # the explicit hold that ends a move
-            started = seg if seg.samples == 0 else None
-            if len(q) == 1:
-                q.pop(0)
-                return HOLD, started, seg
-            return HOLD, started, None
-        return idle_value, None, None
-
     def _set_priority(self) -> None:
         if self.priority <= 0:
             return
@@ -581,4 +315,4 @@ class CommandStream(RecordedTiming):
         self._halt(HaltCause.STOPPED, self._stop_why)
 
 
-__all__ = ["CommandStream", "HaltCause", "RecordedTiming", "SampleRecord", "StreamHalt", "StreamStep", "StreamStopped"]
+__all__ = ["CommandStream"]

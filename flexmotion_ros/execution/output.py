@@ -46,7 +46,8 @@ from scipy.linalg import expm
 from ..core.errors import ConfigError
 from ..core.interfaces.command import CommandInterface, check_acceleration_model, command_interface
 from ..core.model.modal_model import ModalModel
-from .command_stream import CommandStream, StreamHalt
+from .command_stream import CommandStream
+from .stream_halt import StreamHalt
 from .timeline import HOLD, Segment, predicted_state
 from .trajectory import (
     NS,

@@ -26,8 +26,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .command_stream import HaltCause, RecordedTiming, SampleRecord, StreamHalt, StreamStopped
-from .stream_process import NO_SEGMENT, StreamProcess, recv
+from .sample_record import RecordedTiming, SampleRecord
+from .stream_halt import HaltCause, StreamHalt, StreamStopped
+from .stream_ipc import NO_SEGMENT, recv
+from .stream_process import StreamProcess
 from .timeline import Segment, is_hold, predicted_state
 
 #: How often the follower replays the child's samples (s).

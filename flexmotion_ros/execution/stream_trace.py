@@ -10,12 +10,29 @@ instants ``publish`` returned and the step ended (after the slack work: a
 garbage collection), and writes them to that file (``.npy``, one row per
 sample, columns :data:`COLUMNS`) when its stream ends.  ``bench/storm.py``
 sets it and classifies every gap with it.  Memory is allocated once
-(:data:`TRACE_ROWS` rows, 88 bytes each); later samples are not recorded.
+(:data:`TRACE_ROWS` rows, 8 bytes per column); later samples are not recorded.
+
+Around the deadline sleep (:meth:`StreamTrace.sleep`, the stream's injected
+``sleep``) it also records which CPU the thread slept on and woke on
+(``sched_getcpu``), and what happened to the thread inside the sleep call: its
+voluntary context switches (1: the sleep itself; more: it blocked again after
+the timer woke it -- waiting for the interpreter lock or another lock before
+the sleep call could return), involuntary ones (preempted), the times it was
+switched in, its run-queue wait and CPU time, and its page faults.  A late
+wake with one switch, no run-queue wait and no fault was late before the
+thread could run at all: the timer or the (virtual) CPU.  The request loop of
+the stream process (the only other Python thread that runs while it streams)
+records each request it handles (:meth:`StreamTrace.request`), written beside
+the trace (:func:`requests_path`): a late wake during one is a candidate for
+the interpreter lock.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import resource
+import threading
 import time
 
 import numpy as np
@@ -28,7 +45,11 @@ TRACE_ROWS = 1_200_000
 #: the instant publish returned, the start of the slack work, the end of the matched-count refresh in it, the
 #: generation collected in it (-1: none), the end of the step, and the stream thread's run delay (its time waiting
 #: on a run queue, cumulative, ns; ``/proc/thread-self/schedstat``; 0 where not Linux) before and after publishing.
-#: Monotonic columns in s.
+#: Then, around the deadline sleep (:meth:`StreamTrace.sleep`; 0 / -1 where the sample was due before the sleep):
+#: the instant the sleep was called, the CPU the thread slept on and the one it woke on (-1: unknown), and inside
+#: the sleep call: the voluntary and involuntary context switches, the times the thread was switched in, its
+#: run-queue wait and CPU time (ns), and its page faults (minor + major); and the page faults from the wake-up to
+#: the end of the step.  Monotonic columns in s.
 COLUMNS = (
     "k",
     "deadline",
@@ -41,6 +62,16 @@ COLUMNS = (
     "step_end",
     "run_delay_before",
     "run_delay_after",
+    "slept_at",
+    "cpu_slept",
+    "cpu_woke",
+    "sleep_switches",
+    "sleep_preempted",
+    "sleep_runs",
+    "sleep_run_delay",
+    "sleep_cpu_ns",
+    "sleep_faults",
+    "step_faults",
 )
 (
     K,
@@ -54,7 +85,48 @@ COLUMNS = (
     STEP_END,
     RUN_DELAY_BEFORE,
     RUN_DELAY_AFTER,
+    SLEPT_AT,
+    CPU_SLEPT,
+    CPU_WOKE,
+    SLEEP_SWITCHES,
+    SLEEP_PREEMPTED,
+    SLEEP_RUNS,
+    SLEEP_RUN_DELAY,
+    SLEEP_CPU_NS,
+    SLEEP_FAULTS,
+    STEP_FAULTS,
 ) = range(len(COLUMNS))
+#: Columns of the request loop's record (:func:`requests_path`): the request (:data:`REQUEST_OPS` index), the
+#: instants its handling started and ended (monotonic s).
+REQUEST_COLUMNS = ("op", "start", "end")
+#: The requests the record names (index: the ``op`` column; -1: another).
+REQUEST_OPS = ("configure", "start", "stop", "start_now", "splice", "hold_when_idle")
+#: Requests kept.
+REQUEST_ROWS = 200_000
+#: No sleep was called for the sample (it was due already): its sleep columns.
+NO_SLEEP = (0.0, -1.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def requests_path(path: str) -> str:
+    """Where the request loop's record of trace file ``path`` goes (``x.npy`` -> ``x.requests.npy``)."""
+    return (path[:-4] if path.endswith(".npy") else path) + ".requests.npy"
+
+
+def _cpu_reader():
+    """``sched_getcpu`` (libc, through ctypes; about 0.1 us), or a function returning -1 where there is none."""
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).sched_getcpu
+        fn.restype, fn.argtypes = ctypes.c_int, []
+        fn()
+        return fn
+    except (OSError, AttributeError):
+        return lambda: -1
+
+
+def _faults() -> tuple[int, int, int]:
+    """The calling thread's (voluntary, involuntary) context switches and page faults so far."""
+    r = resource.getrusage(resource.RUSAGE_THREAD)
+    return r.ru_nvcsw, r.ru_nivcsw, r.ru_minflt + r.ru_majflt
 
 
 class StreamTrace:
@@ -76,7 +148,13 @@ class StreamTrace:
         self._published = 0.0
         self._slack = (0.0, 0.0, -1.0)
         self._delay = (0.0, 0.0)
-        self._schedstat: int | None = None
+        self._schedstat: tuple[int, int] | None = None  # (thread id, its schedstat fd)
+        self._sleep: tuple[float, ...] = NO_SLEEP
+        self._wake_faults = -1
+        self._cpu = _cpu_reader()
+        self._requests = np.zeros((REQUEST_ROWS, len(REQUEST_COLUMNS)))
+        self._n_requests = 0
+        self._requests_lock = threading.Lock()
 
     @classmethod
     def from_environment(cls) -> StreamTrace | None:
@@ -86,12 +164,54 @@ class StreamTrace:
 
     def run_delay(self) -> float:
         """The calling thread's cumulative run-queue wait (ns; 0 if unknown): read before and after publishing."""
+        return self.schedstat()[1]
+
+    def schedstat(self) -> tuple[float, float, float]:
+        """The calling thread's CPU time and run-queue wait (ns) and times switched in (0s if unknown)."""
         try:
-            if self._schedstat is None:
-                self._schedstat = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
-            return float(os.pread(self._schedstat, 64, 0).split()[1])
-        except (OSError, IndexError, ValueError):
-            return 0.0
+            tid = threading.get_native_id()
+            if self._schedstat is None or self._schedstat[0] != tid:  # a restarted stream runs a new thread
+                if self._schedstat is not None:
+                    os.close(self._schedstat[1])
+                self._schedstat = (tid, os.open("/proc/thread-self/schedstat", os.O_RDONLY))
+            on_cpu, delay, runs = os.pread(self._schedstat[1], 64, 0).split()[:3]
+            return float(on_cpu), float(delay), float(runs)
+        except (OSError, ValueError):
+            return 0.0, 0.0, 0.0
+
+    def sleep(self, seconds: float) -> None:
+        """``time.sleep(seconds)``, with the thread's CPU and scheduling read before and after (the stream's sleep)."""
+        cpu0 = self._cpu()
+        vol0, inv0, faults0 = _faults()
+        _, delay0, runs0 = self.schedstat()
+        on_cpu0 = time.thread_time_ns()  # exact (the kernel's schedstat CPU time is charged at switches and ticks)
+        slept_at = time.monotonic()
+        time.sleep(seconds)
+        # the first Python instruction after the sleep call returned (the interpreter lock taken again)
+        on_cpu1 = time.thread_time_ns()
+        cpu1 = self._cpu()
+        _, delay1, runs1 = self.schedstat()
+        vol1, inv1, faults1 = _faults()
+        self._wake_faults = faults1
+        self._sleep = (
+            slept_at,
+            float(cpu0),
+            float(cpu1),
+            float(vol1 - vol0),
+            float(inv1 - inv0),
+            runs1 - runs0,
+            delay1 - delay0,
+            float(on_cpu1 - on_cpu0),
+            float(faults1 - faults0),
+        )
+
+    def request(self, op: str, start: float, end: float) -> None:
+        """The request loop handled ``op`` from ``start`` to ``end`` (monotonic s; any thread)."""
+        with self._requests_lock:
+            n = self._n_requests
+            if n < len(self._requests):
+                self._requests[n] = (REQUEST_OPS.index(op) if op in REQUEST_OPS else -1, start, end)
+                self._n_requests = n + 1
 
     def published(self, publish_ns: int, delay_before: float) -> None:
         """Publish returned (``publish_ns``: the system time just before it, ns; the run delay then, ns)."""
@@ -107,6 +227,8 @@ class StreamTrace:
         """The step that sent sample ``k`` ended (deadline and wake-up on the monotonic clock, s)."""
         n = self._n
         if n < len(self._rows):
+            end = time.monotonic()
+            faults = _faults()[2] - self._wake_faults if self._wake_faults >= 0 else 0
             self._rows[n] = (
                 k,
                 deadline,
@@ -114,11 +236,15 @@ class StreamTrace:
                 float(self._publish_ns),
                 self._published,
                 *self._slack,
-                time.monotonic(),
+                end,
                 *self._delay,
+                *self._sleep,
+                float(faults),
             )
             self._n = n + 1
         self._slack = (0.0, 0.0, -1.0)
+        self._sleep = NO_SLEEP
+        self._wake_faults = -1
 
     def save(self) -> None:
         """Write the rows recorded so far (appending to what an earlier configuration of the child wrote)."""
@@ -130,6 +256,15 @@ class StreamTrace:
                 pass
         np.save(self.path, rows)
         self._n = 0
+        with self._requests_lock:
+            requests, self._n_requests = self._requests[: self._n_requests].copy(), 0
+        path = requests_path(self.path)
+        if os.path.exists(path):
+            try:
+                requests = np.concatenate([np.load(path), requests])
+            except (OSError, ValueError):
+                pass
+        np.save(path, requests)
 
 
-__all__ = ["COLUMNS", "TRACE_ENV", "TRACE_ROWS", "StreamTrace"]
+__all__ = ["COLUMNS", "REQUEST_COLUMNS", "REQUEST_OPS", "TRACE_ENV", "TRACE_ROWS", "StreamTrace", "requests_path"]

@@ -42,11 +42,11 @@ from ..execution import (
     plan_summary,
     splice_point,
 )
-from ..execution.command_stream import StreamStopped
 from ..execution.measured_state import AT_REST_TOL, EarlyArrival
 from ..execution.plan_process import PlanProcessClosed
 from ..execution.realtime import lower_threads
 from ..execution.requests import Request, RequestKind
+from ..execution.stream_halt import StreamStopped
 from . import messages, multi_axis
 
 

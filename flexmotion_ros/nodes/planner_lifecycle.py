@@ -16,9 +16,9 @@ from typing import Any
 from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
 
 from ..core.errors import FlexmotionError
-from ..execution.command_stream import StreamHalt
 from ..execution.realtime import lower_threads, raise_threads
 from ..execution.remote_stream import RemoteStream
+from ..execution.stream_halt import StreamHalt
 
 #: Python threads of the node that compute in-process: they keep normal scheduling.
 NUMERIC_THREADS = ("flexmotion-learn", "flexmotion-identify")

@@ -29,7 +29,9 @@ from ..execution import Segment
 from ..execution.output import OutputMode
 from ..execution.remote_stream import RemoteStream
 from ..execution.splice import StopPreparer
-from ..execution.stream_process import MAX_INPUTS, ChildSettings, StreamProcess
+from ..execution.stream_ipc import MAX_INPUTS
+from ..execution.stream_process import StreamProcess
+from ..execution.stream_server import ChildSettings
 from .planner_goals import MoveRecord
 
 #: Under ``use_sim_time``, the stream's sleep polls the ROS clock this often (wall s).

@@ -37,7 +37,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64MultiArray
 
-from ..execution.stream_process import ChildSettings
+from ..execution.stream_server import ChildSettings
 from . import messages
 
 #: The stream process's publication mode (``SYNCHRONOUS`` / ``ASYNCHRONOUS``); unset: asynchronous under

@@ -14,8 +14,8 @@ from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.execution import HOLD, CommandStream, Segment, lead_samples, splice_point
-from flexmotion_ros.execution.command_stream import HaltCause, StreamStopped
 from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, StopPreparer, ready_stop_usable
+from flexmotion_ros.execution.stream_halt import HaltCause, StreamStopped
 
 RATE = 100.0
 DT = 1.0 / RATE
@@ -390,7 +390,7 @@ def test_ready_stops_are_planned_ahead_and_used_only_while_the_timeline_still_pr
 def test_the_sample_record_is_a_ring_of_constant_size():
     # issue 16.8: a deque of Python floats (maxlen 200,000) grew the planner by ~13 MB over its first
     # 200,000 samples -- measured by the storm as a leak; the ring is allocated once
-    from flexmotion_ros.execution.command_stream import SampleRecord
+    from flexmotion_ros.execution.sample_record import SampleRecord
 
     rec = SampleRecord(5)
     nbytes = rec._buf.nbytes  # noqa: SLF001 -- the allocation itself is what is tested

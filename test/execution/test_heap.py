@@ -14,10 +14,10 @@ import pytest
 
 MEASURE = """
 import numpy as np
-from flexmotion_ros.execution.command_stream import SampleRecord
+from flexmotion_ros.execution.sample_record import SampleRecord
 from flexmotion_ros.execution.heap import resident_zeros
 from flexmotion_ros.execution.records import SignalLog
-from flexmotion_ros.execution.stream_process import SharedProgress
+from flexmotion_ros.execution.stream_ipc import SharedProgress
 
 def rss():
     with open("/proc/self/status") as f:

@@ -23,7 +23,8 @@ import numpy as np
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.execution.output import OutputSettings
 from flexmotion_ros.execution.remote_stream import RemoteStream
-from flexmotion_ros.execution.stream_process import ChildSettings, StreamProcess
+from flexmotion_ros.execution.stream_process import StreamProcess
+from flexmotion_ros.execution.stream_server import ChildSettings
 from flexmotion_ros.execution.timeline import Segment
 
 path = tempfile.mktemp()
