@@ -85,21 +85,7 @@ def plan_fixed_time_zoh(
     G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go
     w = -system.expm_x(K * dt, x0) / scale
     nu = -np.asarray(continuous.certificate.costate_final, float) * scale
-    S = G @ nu
-    signs = np.where(S >= 0.0, 1.0, -1.0)
-    width = 4
-    while True:
-        free = window_mask(S, width) if width < K else np.ones(K, dtype=bool)
-        sol = solve_peak_lp(G, w, signs, free)
-        if sol is not None:
-            u, t_star, nu_lp = sol
-            if dual_bound(G, w, nu_lp) >= t_star * (1.0 - 1e-9) or free.all():
-                break
-        elif free.all():
-            raise SolverError(f"fixed-time sampled planner: linear program failed at {K} samples")
-        width *= 4
-    if t_star > um * (1.0 + 1e-12):
-        raise SolverError(f"fixed-time sampled planner: {K} samples need peak {t_star:.9g} > u_max = {um}")
+    u, t_star, lower = least_peak_windows(G, w, nu, um, K)
     u_exact = correct_exactly(G, w, u, um)
     if u_exact is None:
         raise SolverError("fixed-time sampled planner: exact correction left the bound; nothing is returned")
@@ -107,9 +93,95 @@ def plan_fixed_time_zoh(
     out = finish_sampled(move, cmds, dt, continuous, False, fewest.samples, t0)
     out.method = "fixed_time"
     out.extra.update(
-        {"requested_samples": K_req, "peak_command": float(np.max(np.abs(cmds))), "least_peak": float(t_star)}
+        {
+            "requested_samples": K_req,
+            "peak_command": float(np.max(np.abs(cmds))),
+            "least_peak": float(t_star),
+            "least_peak_lower_bound": float(lower),
+        }
     )
     return out
+
+
+#: Gap between a window LP's peak and its own full-problem dual bound (relative) that proves the
+#: window optimal outright (the dual's signs are then irrelevant).
+WINDOW_GAP_RTOL = 1e-9
+#: Most free samples in one windowed least-peak LP of :func:`least_peak_windows` (a work bound: HiGHS
+#: took 1.6 s at 71,000 free samples, 10 s at 268,000, 18 s at 522,000; fuzz case 665).  A request of
+#: more samples than this is planned from windows of at most this many free samples.
+MAX_FREE_SAMPLES = 50_000
+
+
+def least_peak_windows(
+    G: np.ndarray, w: np.ndarray, nu: np.ndarray, u_max: float, K: int
+) -> tuple[np.ndarray, float, float]:
+    """The least-peak sequence at ``K`` samples from windows around the sign changes of ``S = G nu``.
+
+    Samples outside the windows are fixed at ``+-t`` with the signs of ``S``;
+    the windows grow (x4) until the window LP is optimal for the full problem,
+    which either of two proofs shows:
+
+    * its full-problem dual bound (weak duality over every sample) is within
+      :data:`WINDOW_GAP_RTOL` of its peak;
+    * its dual has the sign of every fixed sample (the KKT conditions of the
+      full LP: the full LP's optimum is the window's), with the bound within
+      the LP solver's own accuracy (``LP_RTOL``) of the peak.  Fuzz case 665
+      (522,000 samples) met this at 1,539 free samples; the 1e-9 gap, below
+      HiGHS's accuracy there (``t*`` itself moved by 1e-8 between windows),
+      was never met and the windows grew to the full LP (10 LPs, 32 s).
+
+    At most :data:`MAX_FREE_SAMPLES` samples are free (a work bound): past it,
+    the best window sequence within ``u_max`` is returned with the lower bound
+    it has.  Rows of ``G``: ``m`` = samples to go; ``nu``: a dual direction
+    in the same (scaled) units (the continuous fixed-time co-state).
+
+    Returns
+    -------
+    (u, t, lower) : (ndarray, float, float)
+        Commands (samples to go), the LP's peak ``t`` (N), and the best proved
+        lower bound on the least peak at ``K`` samples (N; weak duality, the
+        LPs' duals and ``nu`` itself).
+
+    Raises
+    ------
+    SolverError
+        Every window LP failed, or needs a peak over ``u_max`` within the work bound.
+    """
+    S = G @ nu
+    signs = np.where(S >= 0.0, 1.0, -1.0)
+    lower = dual_bound(G, w, nu)  # any direction bounds the least peak below
+    best = None
+    width = 4
+    while True:
+        free = window_mask(S, width) if width < K else np.ones(K, dtype=bool)
+        if np.count_nonzero(free) > MAX_FREE_SAMPLES:  # the work bound: the best window so far
+            if best is not None and best[1] <= u_max * (1.0 + 1e-12):
+                break
+            raise SolverError(
+                f"fixed-time sampled planner: the least-peak LP at {K} samples needs more than "
+                f"{MAX_FREE_SAMPLES} free samples (its work bound); nothing is returned"
+            )
+        sol = solve_peak_lp(G, w, signs, free)
+        if sol is not None:
+            u, t_star, nu_lp = sol
+            lower = max(lower, dual_bound(G, w, nu_lp))
+            if best is None or t_star < best[1]:
+                best = (u, t_star)
+            signed = bool(np.all((signs * (G @ nu_lp))[~free] >= 0.0))
+            if (
+                lower >= t_star * (1.0 - WINDOW_GAP_RTOL)
+                or (signed and lower >= t_star * (1.0 - LP_RTOL))
+                or free.all()
+            ):
+                best = (u, t_star)  # the accepted window (not an unproved lower peak of a smaller one)
+                break
+        elif free.all():
+            raise SolverError(f"fixed-time sampled planner: linear program failed at {K} samples")
+        width *= 4
+    u, t_star = best
+    if t_star > u_max * (1.0 + 1e-12):
+        raise SolverError(f"fixed-time sampled planner: {K} samples need peak {t_star:.9g} > u_max = {u_max}")
+    return u, t_star, lower
 
 
 def plan_fixed_time_lp(problem: MoveProblem | PreparedMove, arrival_time: float, rate_hz: float) -> SampledProfile:
@@ -128,7 +200,8 @@ def plan_fixed_time_lp(problem: MoveProblem | PreparedMove, arrival_time: float,
     InputError
         ``arrival_time`` below the rigid-body bound, or too early for ``u_max`` at this rate.
     SolverError
-        The LP failed, or no sequence passes the exact final-state check.
+        The LP failed, the request has more than :data:`MAX_FREE_SAMPLES` samples (the
+        work bound), or no sequence passes the exact final-state check.
     """
     t0 = time.perf_counter()
     rate = check_positive("rate_hz", rate_hz, "Hz")
@@ -140,6 +213,11 @@ def plan_fixed_time_lp(problem: MoveProblem | PreparedMove, arrival_time: float,
     T_req = check_arrival_time(arrival_time, T_rigid)
     lower = max(1, math.ceil(T_rigid * rate * (1.0 - 1e-12)))
     K = max(round(T_req * rate), lower)
+    if K > MAX_FREE_SAMPLES:  # every sample free: the LP's work grows faster than K (18 s at 522,000)
+        raise SolverError(
+            f"fixed-time sampled planner: with no continuous move to guide it, the least-peak LP would free all "
+            f"{K} samples at {rate:g} Hz, past its work bound of {MAX_FREE_SAMPLES}; nothing is returned"
+        )
     system = move.response
     scale = move.error_scale(K * dt)
     G = sample_vectors(system, K, dt) / scale  # rows: m = samples to go

@@ -10,6 +10,7 @@ from scipy.linalg import expm
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.model.boundary import MoveProblem
 from flexmotion_ros.core.time_optimal import fixed_time as fixed_time_module
+from flexmotion_ros.core.time_optimal import fixed_time_bound
 from flexmotion_ros.core.time_optimal.fixed_time import plan_fixed_time
 
 # fuzz case 308: a damped rigid body (c = -0.73), three damped modes up to 41 rad/s
@@ -79,6 +80,7 @@ def test_the_bound_search_does_not_repeat_full_solves(monkeypatch):
         return original(*args, **kwargs)
 
     monkeypatch.setattr(fixed_time_module, "plan_time_optimal", counted)
+    monkeypatch.setattr(fixed_time_bound, "plan_time_optimal", counted)  # the bound search's solves
     prof = plan_fixed_time(CASE_5, ARRIVAL_5)
     assert prof.certified
     _check_by_expm(CASE_5, prof, ARRIVAL_5)
