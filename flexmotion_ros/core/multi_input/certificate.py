@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from ..time_optimal.switching import isolate_roots, root_tolerance, sample_grid
+from ..time_optimal.root_refine import root_tolerance
+from ..time_optimal.switching import isolate_roots, sample_grid
 from .exact import VectorPiecewise, simulate
 from .response import MultiResponse
 

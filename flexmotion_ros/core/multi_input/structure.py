@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..time_optimal.root_refine import root_tolerance
 from ..time_optimal.switch_newton import updated_structure
-from ..time_optimal.switching import find_roots, root_tolerance, sample_grid
+from ..time_optimal.switching import find_roots, sample_grid
 from .newton import Extremal, Setting, refine
 from .response import MultiResponse
 

@@ -44,7 +44,8 @@ from ..tolerances import (
     SWITCH_TIME_RTOL,
 )
 from .costate_lp import widest_costate
-from .switching import isolate_roots, root_grid, root_tolerance, sample_grid
+from .root_refine import root_tolerance
+from .switching import isolate_roots, root_grid, sample_grid
 
 #: Rounding of ``S`` in units of ``eps`` times the sum of its terms' magnitudes
 #: (:meth:`switching_magnitude`): a sign margin at or below it is not a proof.

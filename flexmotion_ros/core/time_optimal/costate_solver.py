@@ -30,17 +30,11 @@ import numpy as np
 
 from ..errors import SolverError
 from ..tolerances import MAX_SWITCHES, POLISH_TOL
-from .reachable_set import (
-    Shooting,
-    bracketed_step,
-    inner_exact,
-    inner_smooth,
-    outer_newton,
-    polish,
-    rescale,
-)
+from .reachable_set import Shooting, bracketed_step, outer_newton, polish, rescale
+from .smoothed_dual import inner_smooth
 from .switch_newton import structure_newton
 from .switching import POINTS_PER_HALF_PERIOD, fastest_frequency
+from .trust_region import inner_exact
 
 __all__ = [
     "BangBangSolution",

@@ -131,7 +131,7 @@ def _null_basis(w: np.ndarray) -> np.ndarray:
 
 
 def _inner(lm: LeanMove, T: float, nuh: np.ndarray | None, eps_rel: float, rtol: float = INNER_RTOL):
-    """Smoothed inner problem at ``T`` (as :func:`~.reachable_set.inner_smooth`, on the lean grid).
+    """Smoothed inner problem at ``T`` (as :func:`~.smoothed_dual.inner_smooth`, on the lean grid).
 
     Returns ``(nuh, m, dm/dT, tau, S)``: the scaled co-state direction, the
     smoothed ``m(T)`` and its derivative, the grid (time-to-go, s) and the

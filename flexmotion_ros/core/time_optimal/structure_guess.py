@@ -31,7 +31,8 @@ import numpy as np
 
 from .reachable_set import Shooting
 from .switch_newton import refine_switches, updated_structure
-from .switching import examined_points, root_grid, sample_grid
+from .switching import root_grid, sample_grid
+from .zero_free import examined_points
 
 #: Newton runs (first structure + edits) before the fast path gives up.
 MAX_TRIES = 4
@@ -75,7 +76,7 @@ def newton_from_guess(
         The problem (its state scale ``sh.s`` should be the one for ``T``).
     nuh : ndarray
         Scaled co-state direction guess (``nu * sh.s``), e.g. from
-        :func:`~flexmotion_ros.core.reachable_set.inner_smooth`.
+        :func:`~flexmotion_ros.core.time_optimal.smoothed_dual.inner_smooth`.
     T : float
         Duration guess (s).
     check : Check

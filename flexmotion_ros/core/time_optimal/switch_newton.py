@@ -15,7 +15,8 @@ import numpy as np
 
 from ..tolerances import GAP_RTOL, POLISH_TOL
 from .reachable_set import Shooting
-from .switching import find_roots, root_grid, root_tolerance
+from .root_refine import root_tolerance
+from .switching import find_roots, root_grid
 
 #: Switch-structure corrections tried before giving up.
 MAX_STRUCTURE_UPDATES = 5

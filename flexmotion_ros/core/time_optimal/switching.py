@@ -6,8 +6,11 @@ and time-to-go ``tau = T - t`` the sign is that of
 ``S(tau) = nu^T e^{A tau} B`` (``nu = -lambda(T)``).  Its zeros are the
 switching times.
 
-The zeros are bracketed on a grid fine enough for the fastest mode and
-refined, all at once, by a safeguarded Newton iteration.
+The zeros are bracketed on a grid fine enough for the fastest mode
+(:func:`sample_grid`, or :func:`root_grid`, graded by the modes still
+ringing), blocks of cells proved zero-free skipped (:mod:`.zero_free`),
+isolated with proof by Taylor bounds (:func:`isolate_roots`) and refined,
+all at once, by a safeguarded Newton iteration (:mod:`.root_refine`).
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import SolverError
+from .root_refine import hermite_root, refine_roots
+from .zero_free import cell_points, cells_to_examine
 
 
 class SwitchingSystem(Protocol):
@@ -170,57 +175,6 @@ def _new_grid(system, T: float, density: float) -> np.ndarray:
     return np.linspace(0.0, T, n + 1)
 
 
-def refine_roots(
-    f, a: np.ndarray, b: np.ndarray, fa: np.ndarray, fb: np.ndarray, fscale: float | None = None, start=None
-) -> np.ndarray:
-    """Zeros of ``f`` in brackets ``[a, b]`` (``fa * fb <= 0``), to machine precision.
-
-    ``f(t)`` returns ``(value, derivative)``.  Newton steps, with bisection
-    whenever a step leaves the bracket; all brackets at once.  A value below
-    ``16 eps fscale`` (rounding noise of ``f``: pass the magnitude of its
-    terms) counts as zero.
-    """
-    noise = (
-        16.0
-        * np.finfo(float).eps
-        * (fscale if fscale is not None else float(np.max(np.abs(np.concatenate([fa, fb])), initial=0.0)))
-    )
-    a = a.copy()
-    b = b.copy()
-    fa = fa.copy()
-    eps = np.finfo(float).eps
-    # every bracket is stepped in place, the converged ones frozen by ``active`` (a handful of
-    # brackets: gathering and scattering the active ones cost more numpy calls than the steps)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if start is None:
-            start = a - fa * (b - a) / (fb - fa)  # regula falsi start
-        t = np.where(np.isfinite(start), np.clip(start, a, b), 0.5 * (a + b))
-        active = np.ones(t.shape, dtype=bool)
-        for _ in range(100):
-            v, dv = f(t)
-            same = np.sign(v) == np.sign(fa)
-            a = np.where(active & same, t, a)
-            fa = np.where(active & same, v, fa)
-            b = np.where(active & ~same, t, b)
-            step = v / dv
-            tol = 4.0 * eps * np.maximum(np.abs(t), 1e-300)
-            done = (np.abs(v) <= noise) | (np.abs(step) <= tol) | ((b - a) <= tol)
-            tn = t - step
-            bad = ~np.isfinite(tn) | (tn < a) | (tn > b)
-            tn = np.where(done, t - np.where(np.isfinite(step), step, 0.0), np.where(bad, 0.5 * (a + b), tn))
-            t = np.where(active, tn, t)
-            active &= ~done
-            left = int(np.count_nonzero(active))
-            if left == 0:
-                break
-            if 2 * left < t.size and t.size > 16:  # many brackets, most done: go on with the others alone
-                idx = np.flatnonzero(active)
-                fs = noise / (16.0 * eps)
-                t[idx] = refine_roots(f, a[idx], b[idx], fa[idx], fb[idx], fs, start=t[idx])
-                break
-    return t
-
-
 MAX_DEPTH = 40
 #: ``1 / j!`` for the Taylor bounds of :func:`isolate_roots` (orders up to 20).
 _INV_FACTORIAL = 1.0 / np.array([math.factorial(j) for j in range(21)], dtype=float)
@@ -302,12 +256,12 @@ def isolate_roots(
     sign0 = _sign_at_zero(system, nu)
     # cells proved zero-free by the rigid part's dominance are dropped before
     # any sampling: the work then scales with where S can vanish, not with T
-    cells = _cells_to_examine(system, nu, grid, noise)
+    cells = cells_to_examine(system, nu, grid, noise)
     if cells is None:
         points = grid
         D = np.array(system.switching(nu, points, order=K))  # (K+1, len(points))
     else:
-        idx = _cell_points(cells)  # grid points the kept cells need
+        idx = cell_points(cells)  # grid points the kept cells need
         points = grid[idx]
         if idx.size >= SHARED_BASIS_SHARE * grid.size and not grid.flags.writeable and _takes_rows(system):
             # most of a planner's grid: its trigonometric basis once per T, not per co-state
@@ -389,7 +343,7 @@ def isolate_roots(
         return system.switching(nu, t, derivative=True)
 
     Sa, Sb = np.concatenate(br_Sa), np.concatenate(br_Sb)
-    start = _hermite_root(a, b, Sa, Sb, np.concatenate(br_da), np.concatenate(br_db))
+    start = hermite_root(a, b, Sa, Sb, np.concatenate(br_da), np.concatenate(br_db))
     roots = np.sort(refine_roots(fS, a, b, Sa, Sb, mag0, start=start))
     return RootIsolation(roots, sign0, unproved)
 
@@ -406,132 +360,10 @@ def _takes_rows(system) -> bool:
     return bool(getattr(system, "SWITCHING_TAKES_ROWS", False))
 
 
-#: Cells per block of the zero-free test of :func:`_cells_to_examine`.
-EXCLUSION_BLOCK = 16
-#: About this many blocks at the coarsest level of the test (:func:`_unproved_blocks`).
-EXCLUSION_TOP = 64
-
-
 def _sign_at_zero(system, nu: np.ndarray) -> float:
     """Sign of ``S`` just after ``tau = 0`` (of ``S'`` if ``S(0) = 0``; 1 if both vanish)."""
     S0, dS0 = system.switching(nu, np.zeros(1), derivative=True)
     return float(np.sign(S0[0]) or np.sign(dS0[0]) or 1.0)
-
-
-def _unproved_blocks(system, nu: np.ndarray, grid: np.ndarray, margin: float):
-    """Blocks of :data:`EXCLUSION_BLOCK` cells not proved zero-free, and whether any block was.
-
-    Returns ``(starts, ends, any_free)`` (cell indices of the blocks left to
-    examine; None if ``system`` has no test or the grid is short), or None.
-    The test of an interval covers every interval inside it (the rigid part
-    is monotone and the modal bound decreasing), so it runs coarse to fine:
-    from about :data:`EXCLUSION_TOP` blocks of ``EXCLUSION_BLOCK 2^k`` cells,
-    halving only the blocks not proved.  The blocks left are exactly those the
-    test at ``EXCLUSION_BLOCK`` cells leaves, at a cost that grows with where
-    ``S`` can vanish and ``log T``, not with ``T`` (a 2000 s move of a
-    60 rad/s mode: 65,000 block tests before, a few hundred now).
-    """
-    test = getattr(system, "switching_zero_free", None)
-    n = grid.size - 1
-    if test is None or n < 4 * EXCLUSION_BLOCK:
-        return None
-    size = EXCLUSION_BLOCK
-    while n > 2 * size * EXCLUSION_TOP:
-        size *= 2
-    starts = np.arange(0, n, size)
-    ends = np.minimum(starts + size, n)
-    any_free = False
-    while True:
-        free = test(nu, grid[starts], grid[ends], margin)
-        any_free = any_free or bool(free.any())
-        starts, ends = starts[~free], ends[~free]
-        if size == EXCLUSION_BLOCK or starts.size == 0:
-            return starts, ends, any_free
-        size //= 2
-        mid = np.minimum(starts + size, ends)
-        second = mid < ends
-        starts = np.concatenate([starts, mid[second]])
-        ends = np.concatenate([mid, ends[second]])
-        order = np.argsort(starts, kind="stable")
-        starts, ends = starts[order], ends[order]
-
-
-def _ranges(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
-    """The integers of the half-open ranges ``[starts, ends)``, concatenated."""
-    lengths = ends - starts
-    if lengths.size == 0:
-        return np.empty(0, dtype=np.int64)
-    offsets = np.repeat(starts - np.concatenate([[0], np.cumsum(lengths)[:-1]]), lengths)
-    return np.arange(int(lengths.sum())) + offsets
-
-
-def _cell_points(cells: np.ndarray) -> np.ndarray:
-    """``union1d(cells, cells + 1)`` for strictly increasing ``cells``, in linear time (no sort).
-
-    Interleaved, ``c_0, c_0 + 1, c_1, c_1 + 1, ...`` is already non-decreasing;
-    only repeats (neighbouring cells) are dropped.  (``union1d`` sorted and
-    hashed 40,000 cells per root isolation: 10 % of an 8-mode plan.)
-    """
-    if cells.size == 0:
-        return cells
-    both = np.empty(2 * cells.size, dtype=cells.dtype)
-    both[0::2] = cells
-    both[1::2] = cells + 1
-    return both[np.concatenate([[True], np.diff(both) > 0])]
-
-
-def _cells_to_examine(system, nu: np.ndarray, grid: np.ndarray, noise: float) -> np.ndarray | None:
-    """Indices of the grid cells not proved zero-free by ``system.switching_zero_free``; None: all of them.
-
-    Blocks of :data:`EXCLUSION_BLOCK` cells are tested (coarse to fine:
-    :func:`_unproved_blocks`).  Systems without the test (the robust augmented
-    one) keep every cell.
-    """
-    blocks = _unproved_blocks(system, nu, grid, noise)
-    if blocks is None or not blocks[2]:
-        return None
-    return _ranges(blocks[0], blocks[1])
-
-
-def examined_points(system, nu: np.ndarray, grid: np.ndarray, margin: float) -> np.ndarray:
-    """``grid`` without the points inside blocks where ``|S| > margin`` is proved (see :func:`_cells_to_examine`).
-
-    Block boundaries stay, so consecutive points of the result either are
-    consecutive grid points or bound a block on which ``S`` keeps its sign
-    and ``|S| > margin``.
-    """
-    blocks = _unproved_blocks(system, nu, grid, margin)
-    if blocks is None or not blocks[2]:
-        return grid
-    starts, ends, _ = blocks
-    # the points of the kept blocks, ends included (sorted; adjacent blocks share an end), and 0 and T
-    idx = _ranges(starts, ends + 1)
-    idx = np.concatenate([[0], idx, [grid.size - 1]])
-    idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
-    return grid[idx]
-
-
-def _hermite_root(a, b, fa, fb, da, db) -> np.ndarray:
-    """Zero of the cubic Hermite interpolant on each bracket: a close start for Newton.
-
-    The interpolant on ``x = (t - a) / h`` in monomial form ``c0 + c1 x + c2
-    x^2 + c3 x^3`` (Horner: a third of the numpy calls of the Hermite basis),
-    four Newton steps from the secant's zero, clipped to the bracket.
-    """
-    h = b - a
-    hda, hdb = h * da, h * db
-    c1 = hda
-    c2 = 3.0 * (fb - fa) - 2.0 * hda - hdb
-    c3 = 2.0 * (fa - fb) + hda + hdb
-    d2, d3 = 2.0 * c2, 3.0 * c3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = np.clip(fa / (fa - fb), 0.0, 1.0)
-        for _ in range(4):
-            p = ((c3 * x + c2) * x + c1) * x + fa
-            dp = (d3 * x + d2) * x + c1
-            x = np.clip(x - p / dp, 0.0, 1.0)
-    x = np.where(np.isfinite(x), x, 0.5)
-    return a + x * h
 
 
 def find_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None):
@@ -542,22 +374,3 @@ def find_roots(system, nu: np.ndarray, T: float, grid: np.ndarray | None = None)
     """
     iso = isolate_roots(system, nu, T, grid, order=4)
     return iso.roots, iso.sign0
-
-
-def root_tolerance(
-    system, nu: np.ndarray, T: float, roots: np.ndarray, rtol: float = 1e-9, magnitude: float | None = None
-) -> np.ndarray:
-    """How precisely each zero of ``S`` is determined (s).
-
-    ``max(rtol T, noise / |S'(root)|)`` with ``noise`` a generous bound on the
-    rounding error of ``S`` (terms that cancel); in a tight cluster of zeros
-    ``|S'|`` is small and a zero's position is only known to that precision.
-    ``magnitude``: ``system.switching_magnitude(nu, T)[0]`` if the caller has it.
-    """
-    if roots.size == 0:
-        return np.empty(0)
-    mag0 = system.switching_magnitude(nu, T)[0] if magnitude is None else magnitude
-    _, dS = system.switching(nu, roots, derivative=True)
-    noise = 1e3 * np.finfo(float).eps * mag0
-    with np.errstate(divide="ignore"):
-        return np.maximum(rtol * T, noise / np.abs(dS))

@@ -25,7 +25,7 @@
 * The smoothed warm start of a long damped move sampled the fastest mode's
   spacing over the whole move, long after that mode had rung out (case 3220:
   288,471 responses ``e^{A tau} B`` per plan on 8250f90, 23,131 with the
-  graded grid of ``reachable_set.graded_grid``), same optimum.
+  graded grid of ``smoothed_dual.graded_grid``), same optimum.
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ from reference_solutions import rigid_min_time
 from flexmotion_ros.core import ModalModel, MoveProblem
 from flexmotion_ros.core.results import SolverPath
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
-from flexmotion_ros.core.time_optimal import reachable_set, solver
+from flexmotion_ros.core.time_optimal import smoothed_dual, solver
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
-from flexmotion_ros.core.time_optimal.switching import EXCLUSION_BLOCK, examined_points, sample_grid
+from flexmotion_ros.core.time_optimal.switching import sample_grid
+from flexmotion_ros.core.time_optimal.zero_free import EXCLUSION_BLOCK, examined_points
 
 CASE_216 = (
     ModalModel(
@@ -161,7 +162,7 @@ def test_a_failed_switch_newton_continues_from_the_smoothed_start(monkeypatch):
     # the uniform warm start of b52bcae (with the graded one the fast path answers this move), and the
     # full solver alone: since 140fca2 the fast path answers this move from the uniform start too
     # (this test then failed on main); with CONTINUE_SHARE = 0 (b52bcae's restart) the full solver takes 98
-    monkeypatch.setattr(reachable_set, "SMOOTH_DECAY", math.inf, raising=False)
+    monkeypatch.setattr(smoothed_dual, "SMOOTH_DECAY", math.inf)
     monkeypatch.setattr(solver, "FAST_PATH", False)
     problem = _problem(CASE_544)
     profile = plan_time_optimal(problem)
