@@ -32,8 +32,9 @@ Events (the sliding velocity reaching zero, a stuck contact breaking loose)
 are located on the exact solution: in closed form when ``C A = alpha C``
 (the rigid-body contact: ``y`` obeys a scalar linear ODE), otherwise
 bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
-test and refined by Brent's method on the matrix-exponential solution.  The
-simulator never steps over an event.
+test and refined by Brent's method on the matrix-exponential solution
+(:mod:`.events`).  The simulator never steps over an event.  The planners'
+fast path propagates with the modal closed forms instead (:mod:`.closed_form`).
 
 The planners built on this simulator: :mod:`.time_optimal` (the
 bang-bang extremal, :func:`~.time_optimal.plan_time_optimal_friction`),
@@ -47,13 +48,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
-from scipy.optimize import brentq
 
 from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, step_matrices
-from ..simulation.modal_response import ModalResponse
+from .closed_form import ClosedForm
+from .events import first_root
 
 STICK = 0  # mode of a stuck contact (sliding modes are +1, -1)
 #: Step matrices a :class:`FrictionSystem` keeps per step length (cleared when full).
@@ -269,12 +269,13 @@ class FrictionSystem:
                 tau = math.log1p(z) / al if z > -1.0 else math.inf
             return tau if 0.0 < tau <= h else None
         M, m = self._affine(mode, level)
+        wmax = self._omega_max(M)
         if mode == STICK:
             w = C @ self.A / self.Cg
             k0 = float(C @ self.B) * level / self.Cg
-            roots = [self._first_root(M, m, x, w, k0 - self.F, h), self._first_root(M, m, x, w, k0 + self.F, h)]
+            roots = [first_root(M, m, x, w, k0 - self.F, h, wmax), first_root(M, m, x, w, k0 + self.F, h, wmax)]
         else:
-            roots = [self._first_root(M, m, x, C, 0.0, h, start_sign=mode)]
+            roots = [first_root(M, m, x, C, 0.0, h, wmax, start_sign=mode)]
         roots = [r for r in roots if r is not None]
         return min(roots) if roots else None
 
@@ -283,73 +284,6 @@ class FrictionSystem:
         if key not in self._wmax:
             self._wmax[key] = float(np.max(np.abs(np.linalg.eigvals(M).imag), initial=0.0))
         return self._wmax[key]
-
-    def _first_root(self, M, m, x0, w, k, h, start_sign=None) -> float | None:
-        """First zero in ``(0, h]`` of ``r(t) = w.x(t) + k``, ``x' = M x + m`` (exact solution)."""
-        wmax = self._omega_max(M)
-        cells = max(4, math.ceil(h * wmax * 16.0 / (2.0 * math.pi))) if wmax > 0.0 else 4
-        cells = min(cells, 100000)
-        d = h / cells
-        Phi, Gam = _affine_step(M, m, d)
-        xs = np.empty((cells + 1, x0.size))
-        xs[0] = x0
-        for i in range(cells):
-            xs[i + 1] = Phi @ xs[i] + Gam
-        r = xs @ w + k
-        dr = (xs @ M.T + m) @ w
-        s0 = start_sign if start_sign is not None else (np.sign(r[0]) or np.sign(dr[0]))
-        if r[0] * s0 <= 0.0:
-            # starting on the surface (an event just happened) with a rounding residue of the
-            # wrong sign: remove the residue, so the motion away from the surface is no root
-            k = k - r[0]
-            r = r - r[0]
-            r[0] = s0 * 1e-300
-        scale = float(np.max(np.abs(r))) + 1e-300
-        for i in range(cells):
-            a, b = r[i], r[i + 1]
-            if a * b <= 0.0:
-                lo_t, hi_t = 0.0, d
-            else:
-                # cubic Hermite dip: a double zero hidden between two samples
-                ss = np.linspace(0.0, 1.0, 9)[1:-1]
-                h00, h10 = 2 * ss**3 - 3 * ss**2 + 1, ss**3 - 2 * ss**2 + ss
-                h01, h11 = -2 * ss**3 + 3 * ss**2, ss**3 - ss**2
-                cub = h00 * a + h10 * d * dr[i] + h01 * b + h11 * d * dr[i + 1]
-                j = int(np.argmin(cub * np.sign(a)))
-                if cub[j] * np.sign(a) > 0.05 * scale:
-                    continue
-                tm = ss[j] * d
-                xm = _affine_apply(M, m, xs[i], tm)
-                if (xm @ w + k) * a > 0.0:
-                    continue
-                lo_t, hi_t = 0.0, tm
-            xi = xs[i]
-
-            def f(t, xi=xi):
-                return float(_affine_apply(M, m, xi, t) @ w + k)
-
-            fb = f(hi_t)
-            if lo_t == 0.0 and i == 0:
-                # leaving the surface at t = 0: step back from hi_t until f has the start sign
-                t1, f1 = hi_t, fb
-                while f1 * s0 <= 0.0 and t1 > 1e-12 * d:
-                    hi_t, fb = t1, f1
-                    t1 *= 0.5
-                    f1 = f(t1)
-                if f1 * s0 <= 0.0:
-                    continue  # no excursion away from the surface: nothing to find here
-                lo_t, fa = t1, f1
-            else:
-                fa = f(lo_t) if lo_t > 0.0 else a
-            if fb == 0.0:
-                return i * d + hi_t
-            if fa * fb > 0.0:
-                continue
-            t = lo_t if fa == 0.0 else brentq(f, lo_t, hi_t, xtol=4e-16 * max(h, 1e-300), rtol=8.9e-16)
-            tau = i * d + t
-            if tau > 0.0:
-                return tau
-        return None
 
     # ------------------------------------------------------------- simulate
     def run(self, x0, u: PiecewiseConstant, times=None, lock_after: float = math.inf) -> FrictionRun:
@@ -419,62 +353,6 @@ class FrictionSystem:
                         events.append((t, "slip", x.copy()))
                     mode = new
         return run
-
-
-class ClosedForm:
-    """``e^{A h}``, ``int_0^h e^{A s} B ds`` and the friction term in closed form (modal blocks)."""
-
-    def __init__(self, model: ModalModel) -> None:
-        self.model = model
-        self.resp = ModalResponse(model, True)
-        self.n = model.n_states
-        self._cache: dict[float, tuple] = {}
-
-    def steps(self, h: float):
-        hit = self._cache.get(h)
-        if hit is not None:
-            return hit
-        r = self.resp
-        n = self.n
-        Phi = np.zeros((n, n))
-        ch = r.c * h
-        Phi[0, 0] = 1.0
-        Phi[0, 1] = h * (math.expm1(ch) / ch if ch != 0.0 else 1.0)
-        Phi[1, 1] = math.exp(ch)
-        if r.w.size:
-            E, C, S = (a[0] for a in r._mode_trig(np.array([h])))
-            s_wd = r.sig / r.wd
-            i = 2 + 2 * np.arange(r.w.size)
-            Phi[i, i] = E * (C + s_wd * S)
-            Phi[i, i + 1] = E * S / r.wd
-            Phi[i + 1, i] = -E * r.w**2 / r.wd * S
-            Phi[i + 1, i + 1] = E * (C - s_wd * S)
-        Gam = r.input_integral(np.array([h]))[0]
-        Gg = np.zeros(n)
-        Gg[:2] = Gam[:2] * (abs(r.b0) / r.b0)  # friction acts on the rigid body only
-        if len(self._cache) > 4096:
-            self._cache.clear()
-        out = (Phi, Gam, Gg)
-        self._cache[h] = out
-        return out
-
-
-def _affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """``x(h) = Phi x + Gam`` for ``x' = M x + m`` (``m`` a constant vector)."""
-    Phi, Gam = (
-        step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
-    )
-    return Phi, Gam
-
-
-def _affine_apply(M: np.ndarray, m: np.ndarray, x: np.ndarray, h: float) -> np.ndarray:
-    """Exact ``x(h)`` for one odd step length (uncached: keeps the shared cache for sample periods)."""
-    n = M.shape[0]
-    Z = np.zeros((n + 1, n + 1))
-    Z[:n, :n] = M
-    Z[:n, n] = m
-    E = expm(Z * h)
-    return E[:n, :n] @ x + E[:n, n]
 
 
 def simulate_coulomb(model: ModalModel, x0, u: PiecewiseConstant, coulomb_force: float, times=None) -> np.ndarray:
