@@ -34,7 +34,8 @@ are located on the exact solution: in closed form when ``C A = alpha C``
 bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
 test and refined by Brent's method on the matrix-exponential solution
 (:mod:`.events`).  The simulator never steps over an event.  The planners'
-fast path propagates with the modal closed forms instead (:mod:`.closed_form`).
+fast path propagates with the modal closed forms instead (:class:`ClosedForm`).
+The contact itself (``g``, ``C``, ``F``) is :mod:`.contact_model`.
 
 The planners built on this simulator: :mod:`.time_optimal` (the
 bang-bang extremal, :func:`~.time_optimal.plan_time_optimal_friction`),
@@ -49,86 +50,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, step_matrices
-from .closed_form import ClosedForm
+from ..simulation.modal_response import ModalResponse
+from .contact_model import Contact, rigid_contact
 from .events import first_root
 
 STICK = 0  # mode of a stuck contact (sliding modes are +1, -1)
 #: Step matrices a :class:`FrictionSystem` keeps per step length (cleared when full).
 STEP_CACHE_SIZE = 256
-
-
-# ----------------------------------------------------------------- the contact
-@dataclass(frozen=True)
-class Contact:
-    """One Coulomb friction contact.
-
-    Attributes
-    ----------
-    g : ndarray, shape ``(n,)``
-        ``x'`` per newton of friction force (e.g. ``|b0| e_v`` for the rigid body).
-    C : ndarray, shape ``(n,)``
-        Sliding velocity ``y = C x`` (m/s).
-    force : float
-        Coulomb force ``F >= 0`` (N, the input's unit).
-    """
-
-    g: np.ndarray
-    C: np.ndarray
-    force: float
-
-    def __post_init__(self) -> None:
-        g = np.asarray(self.g, float).ravel()
-        C = np.asarray(self.C, float).ravel()
-        F = float(self.force)
-        if not (math.isfinite(F) and F >= 0.0):
-            raise InputError("coulomb_force", f"must be finite and >= 0 N, got {self.force}")
-        if g.shape != C.shape or not float(C @ g) > 0.0:
-            raise InputError("friction contact", "needs C g > 0 (friction must oppose the sliding velocity)")
-        object.__setattr__(self, "g", g)
-        object.__setattr__(self, "C", C)
-        object.__setattr__(self, "force", F)
-
-
-def rigid_contact(model: ModalModel, coulomb_force: float) -> Contact:
-    """Friction ``F sgn(v)`` on the rigid-body coordinate of ``model`` (see module notes)."""
-    g = np.zeros(model.n_states)
-    g[1] = abs(model.b0)
-    C = np.zeros(model.n_states)
-    C[1] = 1.0
-    return Contact(g, C, coulomb_force)
-
-
-def contact_at_coordinate(built, index: int, coulomb_force: float) -> Contact:
-    """Friction at physical coordinate ``index`` of a :class:`~.builders.BuiltModel` (inside the structure).
-
-    With ``Phi = modal_to_physical`` and the physical mass matrix ``M`` the
-    generalised effect of a force on coordinate ``j`` is ``Phi^{-1} M^{-1} e_j``
-    (mass-orthogonal modes); the sliding velocity is row ``j`` of ``Phi`` on
-    the velocity states.  Needs the builder's masses (``two_mass``, ``crane``,
-    ``chain``).
-    """
-    p = built.parameters
-    if "masses" in p:
-        masses = np.asarray(p["masses"], float)
-    elif "m1" in p:
-        masses = np.array([p["m1"], p["m2"]], float)
-    elif "cart_mass" in p:
-        masses = np.array([p["cart_mass"], p["payload_mass"]], float)
-    else:
-        raise InputError("friction contact", f"no masses known for a {built.kind!r} model")
-    Phi = np.asarray(built.modal_to_physical, float)
-    if not 0 <= index < Phi.shape[0]:
-        raise InputError("friction contact", f"coordinate index must be in [0, {Phi.shape[0] - 1}], got {index}")
-    eff = np.linalg.solve(Phi, np.eye(Phi.shape[0])[index] / masses)  # modal accelerations per N
-    n = built.model.n_states
-    g = np.zeros(n)
-    C = np.zeros(n)
-    g[1::2] = eff
-    C[1::2] = Phi[index]
-    return Contact(g, C, coulomb_force)
 
 
 # ------------------------------------------------------------------ simulation
@@ -273,9 +203,12 @@ class FrictionSystem:
         if mode == STICK:
             w = C @ self.A / self.Cg
             k0 = float(C @ self.B) * level / self.Cg
-            roots = [first_root(M, m, x, w, k0 - self.F, h, wmax), first_root(M, m, x, w, k0 + self.F, h, wmax)]
+            roots = [
+                first_root(M, m, x, w, k0 - self.F, h, wmax, _affine_step),
+                first_root(M, m, x, w, k0 + self.F, h, wmax, _affine_step),
+            ]
         else:
-            roots = [first_root(M, m, x, C, 0.0, h, wmax, start_sign=mode)]
+            roots = [first_root(M, m, x, C, 0.0, h, wmax, _affine_step, start_sign=mode)]
         roots = [r for r in roots if r is not None]
         return min(roots) if roots else None
 
@@ -353,6 +286,52 @@ class FrictionSystem:
                         events.append((t, "slip", x.copy()))
                     mode = new
         return run
+
+
+class ClosedForm:
+    """``e^{A h}``, ``int_0^h e^{A s} B ds`` and the friction term in closed form (modal blocks)."""
+
+    def __init__(self, model: ModalModel) -> None:
+        self.model = model
+        self.resp = ModalResponse(model, True)
+        self.n = model.n_states
+        self._cache: dict[float, tuple] = {}
+
+    def steps(self, h: float):
+        hit = self._cache.get(h)
+        if hit is not None:
+            return hit
+        r = self.resp
+        n = self.n
+        Phi = np.zeros((n, n))
+        ch = r.c * h
+        Phi[0, 0] = 1.0
+        Phi[0, 1] = h * (math.expm1(ch) / ch if ch != 0.0 else 1.0)
+        Phi[1, 1] = math.exp(ch)
+        if r.w.size:
+            E, C, S = (a[0] for a in r._mode_trig(np.array([h])))
+            s_wd = r.sig / r.wd
+            i = 2 + 2 * np.arange(r.w.size)
+            Phi[i, i] = E * (C + s_wd * S)
+            Phi[i, i + 1] = E * S / r.wd
+            Phi[i + 1, i] = -E * r.w**2 / r.wd * S
+            Phi[i + 1, i + 1] = E * (C - s_wd * S)
+        Gam = r.input_integral(np.array([h]))[0]
+        Gg = np.zeros(n)
+        Gg[:2] = Gam[:2] * (abs(r.b0) / r.b0)  # friction acts on the rigid body only
+        if len(self._cache) > 4096:
+            self._cache.clear()
+        out = (Phi, Gam, Gg)
+        self._cache[h] = out
+        return out
+
+
+def _affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """``x(h) = Phi x + Gam`` for ``x' = M x + m`` (``m`` a constant vector)."""
+    Phi, Gam = (
+        step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
+    )
+    return Phi, Gam
 
 
 def simulate_coulomb(model: ModalModel, x0, u: PiecewiseConstant, coulomb_force: float, times=None) -> np.ndarray:

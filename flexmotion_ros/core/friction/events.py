@@ -15,16 +15,6 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from ..simulation.exact import step_matrices
-
-
-def affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """``x(h) = Phi x + Gam`` for ``x' = M x + m`` (``m`` a constant vector)."""
-    Phi, Gam = (
-        step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
-    )
-    return Phi, Gam
-
 
 def affine_apply(M: np.ndarray, m: np.ndarray, x: np.ndarray, h: float) -> np.ndarray:
     """Exact ``x(h)`` for one odd step length (uncached: keeps the shared cache for sample periods)."""
@@ -36,15 +26,16 @@ def affine_apply(M: np.ndarray, m: np.ndarray, x: np.ndarray, h: float) -> np.nd
     return E[:n, :n] @ x + E[:n, n]
 
 
-def first_root(M, m, x0, w, k, h: float, wmax: float, start_sign=None) -> float | None:
+def first_root(M, m, x0, w, k, h: float, wmax: float, step, start_sign=None) -> float | None:
     """First zero in ``(0, h]`` (s) of ``r(t) = w.x(t) + k``, ``x' = M x + m`` (exact solution).
 
-    ``wmax``: the largest imaginary part of ``M``'s eigenvalues (rad/s), the bracketing grid's scale.
+    ``wmax``: the largest imaginary part of ``M``'s eigenvalues (rad/s), the bracketing grid's scale;
+    ``step(M, m, d) -> (Phi, Gam)``: the exact step ``x(d) = Phi x + Gam`` (the simulator's cached one).
     """
     cells = max(4, math.ceil(h * wmax * 16.0 / (2.0 * math.pi))) if wmax > 0.0 else 4
     cells = min(cells, 100000)
     d = h / cells
-    Phi, Gam = affine_step(M, m, d)
+    Phi, Gam = step(M, m, d)
     xs = np.empty((cells + 1, x0.size))
     xs[0] = x0
     for i in range(cells):
