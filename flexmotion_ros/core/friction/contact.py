@@ -32,8 +32,10 @@ Events (the sliding velocity reaching zero, a stuck contact breaking loose)
 are located on the exact solution: in closed form when ``C A = alpha C``
 (the rigid-body contact: ``y`` obeys a scalar linear ODE), otherwise
 bracketed on a grid of 1/16 of the fastest period with a cubic Hermite dip
-test and refined by Brent's method on the matrix-exponential solution.  The
-simulator never steps over an event.
+test and refined by Brent's method on the matrix-exponential solution
+(:mod:`.events`).  The simulator never steps over an event.  The planners'
+fast path propagates with the modal closed forms instead (:class:`ClosedForm`).
+The contact itself (``g``, ``C``, ``F``) is :mod:`.contact_model`.
 
 The planners built on this simulator: :mod:`.time_optimal` (the
 bang-bang extremal, :func:`~.time_optimal.plan_time_optimal_friction`),
@@ -47,88 +49,16 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
-from scipy.optimize import brentq
 
-from ..errors import InputError
 from ..model.modal_model import ModalModel
 from ..simulation.exact import PiecewiseConstant, step_matrices
 from ..simulation.modal_response import ModalResponse
+from .contact_model import Contact, rigid_contact
+from .events import first_root
 
 STICK = 0  # mode of a stuck contact (sliding modes are +1, -1)
 #: Step matrices a :class:`FrictionSystem` keeps per step length (cleared when full).
 STEP_CACHE_SIZE = 256
-
-
-# ----------------------------------------------------------------- the contact
-@dataclass(frozen=True)
-class Contact:
-    """One Coulomb friction contact.
-
-    Attributes
-    ----------
-    g : ndarray, shape ``(n,)``
-        ``x'`` per newton of friction force (e.g. ``|b0| e_v`` for the rigid body).
-    C : ndarray, shape ``(n,)``
-        Sliding velocity ``y = C x`` (m/s).
-    force : float
-        Coulomb force ``F >= 0`` (N, the input's unit).
-    """
-
-    g: np.ndarray
-    C: np.ndarray
-    force: float
-
-    def __post_init__(self) -> None:
-        g = np.asarray(self.g, float).ravel()
-        C = np.asarray(self.C, float).ravel()
-        F = float(self.force)
-        if not (math.isfinite(F) and F >= 0.0):
-            raise InputError("coulomb_force", f"must be finite and >= 0 N, got {self.force}")
-        if g.shape != C.shape or not float(C @ g) > 0.0:
-            raise InputError("friction contact", "needs C g > 0 (friction must oppose the sliding velocity)")
-        object.__setattr__(self, "g", g)
-        object.__setattr__(self, "C", C)
-        object.__setattr__(self, "force", F)
-
-
-def rigid_contact(model: ModalModel, coulomb_force: float) -> Contact:
-    """Friction ``F sgn(v)`` on the rigid-body coordinate of ``model`` (see module notes)."""
-    g = np.zeros(model.n_states)
-    g[1] = abs(model.b0)
-    C = np.zeros(model.n_states)
-    C[1] = 1.0
-    return Contact(g, C, coulomb_force)
-
-
-def contact_at_coordinate(built, index: int, coulomb_force: float) -> Contact:
-    """Friction at physical coordinate ``index`` of a :class:`~.builders.BuiltModel` (inside the structure).
-
-    With ``Phi = modal_to_physical`` and the physical mass matrix ``M`` the
-    generalised effect of a force on coordinate ``j`` is ``Phi^{-1} M^{-1} e_j``
-    (mass-orthogonal modes); the sliding velocity is row ``j`` of ``Phi`` on
-    the velocity states.  Needs the builder's masses (``two_mass``, ``crane``,
-    ``chain``).
-    """
-    p = built.parameters
-    if "masses" in p:
-        masses = np.asarray(p["masses"], float)
-    elif "m1" in p:
-        masses = np.array([p["m1"], p["m2"]], float)
-    elif "cart_mass" in p:
-        masses = np.array([p["cart_mass"], p["payload_mass"]], float)
-    else:
-        raise InputError("friction contact", f"no masses known for a {built.kind!r} model")
-    Phi = np.asarray(built.modal_to_physical, float)
-    if not 0 <= index < Phi.shape[0]:
-        raise InputError("friction contact", f"coordinate index must be in [0, {Phi.shape[0] - 1}], got {index}")
-    eff = np.linalg.solve(Phi, np.eye(Phi.shape[0])[index] / masses)  # modal accelerations per N
-    n = built.model.n_states
-    g = np.zeros(n)
-    C = np.zeros(n)
-    g[1::2] = eff
-    C[1::2] = Phi[index]
-    return Contact(g, C, coulomb_force)
 
 
 # ------------------------------------------------------------------ simulation
@@ -269,12 +199,16 @@ class FrictionSystem:
                 tau = math.log1p(z) / al if z > -1.0 else math.inf
             return tau if 0.0 < tau <= h else None
         M, m = self._affine(mode, level)
+        wmax = self._omega_max(M)
         if mode == STICK:
             w = C @ self.A / self.Cg
             k0 = float(C @ self.B) * level / self.Cg
-            roots = [self._first_root(M, m, x, w, k0 - self.F, h), self._first_root(M, m, x, w, k0 + self.F, h)]
+            roots = [
+                first_root(M, m, x, w, k0 - self.F, h, wmax, _affine_step),
+                first_root(M, m, x, w, k0 + self.F, h, wmax, _affine_step),
+            ]
         else:
-            roots = [self._first_root(M, m, x, C, 0.0, h, start_sign=mode)]
+            roots = [first_root(M, m, x, C, 0.0, h, wmax, _affine_step, start_sign=mode)]
         roots = [r for r in roots if r is not None]
         return min(roots) if roots else None
 
@@ -283,73 +217,6 @@ class FrictionSystem:
         if key not in self._wmax:
             self._wmax[key] = float(np.max(np.abs(np.linalg.eigvals(M).imag), initial=0.0))
         return self._wmax[key]
-
-    def _first_root(self, M, m, x0, w, k, h, start_sign=None) -> float | None:
-        """First zero in ``(0, h]`` of ``r(t) = w.x(t) + k``, ``x' = M x + m`` (exact solution)."""
-        wmax = self._omega_max(M)
-        cells = max(4, math.ceil(h * wmax * 16.0 / (2.0 * math.pi))) if wmax > 0.0 else 4
-        cells = min(cells, 100000)
-        d = h / cells
-        Phi, Gam = _affine_step(M, m, d)
-        xs = np.empty((cells + 1, x0.size))
-        xs[0] = x0
-        for i in range(cells):
-            xs[i + 1] = Phi @ xs[i] + Gam
-        r = xs @ w + k
-        dr = (xs @ M.T + m) @ w
-        s0 = start_sign if start_sign is not None else (np.sign(r[0]) or np.sign(dr[0]))
-        if r[0] * s0 <= 0.0:
-            # starting on the surface (an event just happened) with a rounding residue of the
-            # wrong sign: remove the residue, so the motion away from the surface is no root
-            k = k - r[0]
-            r = r - r[0]
-            r[0] = s0 * 1e-300
-        scale = float(np.max(np.abs(r))) + 1e-300
-        for i in range(cells):
-            a, b = r[i], r[i + 1]
-            if a * b <= 0.0:
-                lo_t, hi_t = 0.0, d
-            else:
-                # cubic Hermite dip: a double zero hidden between two samples
-                ss = np.linspace(0.0, 1.0, 9)[1:-1]
-                h00, h10 = 2 * ss**3 - 3 * ss**2 + 1, ss**3 - 2 * ss**2 + ss
-                h01, h11 = -2 * ss**3 + 3 * ss**2, ss**3 - ss**2
-                cub = h00 * a + h10 * d * dr[i] + h01 * b + h11 * d * dr[i + 1]
-                j = int(np.argmin(cub * np.sign(a)))
-                if cub[j] * np.sign(a) > 0.05 * scale:
-                    continue
-                tm = ss[j] * d
-                xm = _affine_apply(M, m, xs[i], tm)
-                if (xm @ w + k) * a > 0.0:
-                    continue
-                lo_t, hi_t = 0.0, tm
-            xi = xs[i]
-
-            def f(t, xi=xi):
-                return float(_affine_apply(M, m, xi, t) @ w + k)
-
-            fb = f(hi_t)
-            if lo_t == 0.0 and i == 0:
-                # leaving the surface at t = 0: step back from hi_t until f has the start sign
-                t1, f1 = hi_t, fb
-                while f1 * s0 <= 0.0 and t1 > 1e-12 * d:
-                    hi_t, fb = t1, f1
-                    t1 *= 0.5
-                    f1 = f(t1)
-                if f1 * s0 <= 0.0:
-                    continue  # no excursion away from the surface: nothing to find here
-                lo_t, fa = t1, f1
-            else:
-                fa = f(lo_t) if lo_t > 0.0 else a
-            if fb == 0.0:
-                return i * d + hi_t
-            if fa * fb > 0.0:
-                continue
-            t = lo_t if fa == 0.0 else brentq(f, lo_t, hi_t, xtol=4e-16 * max(h, 1e-300), rtol=8.9e-16)
-            tau = i * d + t
-            if tau > 0.0:
-                return tau
-        return None
 
     # ------------------------------------------------------------- simulate
     def run(self, x0, u: PiecewiseConstant, times=None, lock_after: float = math.inf) -> FrictionRun:
@@ -465,16 +332,6 @@ def _affine_step(M: np.ndarray, m: np.ndarray, h: float) -> tuple[np.ndarray, np
         step_matrices(M, m, h) if np.any(m) else (step_matrices(M, np.zeros(M.shape[0]), h)[0], np.zeros(M.shape[0]))
     )
     return Phi, Gam
-
-
-def _affine_apply(M: np.ndarray, m: np.ndarray, x: np.ndarray, h: float) -> np.ndarray:
-    """Exact ``x(h)`` for one odd step length (uncached: keeps the shared cache for sample periods)."""
-    n = M.shape[0]
-    Z = np.zeros((n + 1, n + 1))
-    Z[:n, :n] = M
-    Z[:n, n] = m
-    E = expm(Z * h)
-    return E[:n, :n] @ x + E[:n, n]
 
 
 def simulate_coulomb(model: ModalModel, x0, u: PiecewiseConstant, coulomb_force: float, times=None) -> np.ndarray:

@@ -117,8 +117,13 @@ class Extremal:
         reversals = any(kind == "reversal" for _, kind, _ in run.events)
         return r, J, reversals
 
-    def newton(self, y: np.ndarray, max_iter: int = 30) -> tuple[bool, np.ndarray, float]:
-        """Damped Newton on the extremal conditions from ``y``; returns ``(converged, y, residual)``."""
+    def newton(
+        self, y: np.ndarray, max_iter: int = 30, halvings: int = LINE_SEARCH_HALVINGS
+    ) -> tuple[bool, np.ndarray, float]:
+        """Damped Newton on the extremal conditions from ``y``; returns ``(converged, y, residual)``.
+
+        ``halvings``: trial steps of the line search (``1, 1/2, 1/4, ...``); a Newton step whose
+        ``halvings`` trials all fail to lower the residual ends the solve (not converged)."""
         out = self.residual(y, True)
         if out is None:
             return False, y, math.inf
@@ -147,7 +152,7 @@ class Extremal:
                     J[nI : nI + L, j] = (rp - r)[nI : nI + L] / (yp[j] - y[j])
             step, *_ = np.linalg.lstsq(J, -r, rcond=None)
             tt = 1.0
-            for _ in range(LINE_SEARCH_HALVINGS):
+            for _ in range(halvings):
                 yc = y + tt * step
                 if self.valid(yc):
                     oc = self.residual(yc, True)
@@ -176,13 +181,15 @@ def newton_solve(
     y: np.ndarray,
     max_iter: int = 20,
     budget: list[int] | None = None,
+    halvings: int = LINE_SEARCH_HALVINGS,
 ) -> tuple[bool, Extremal, np.ndarray]:
     """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
 
-    ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place).
+    ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place);
+    ``halvings``: see :meth:`Extremal.newton`.
     """
     ext = Extremal(problem, levels, F, scale)
     ext.budget = budget
     ext.sig_scale = sigma_scale(ext, y)
-    ok, y_new, _ = ext.newton(y, max_iter=max_iter)
+    ok, y_new, _ = ext.newton(y, max_iter=max_iter, halvings=halvings)
     return ok, ext, y_new

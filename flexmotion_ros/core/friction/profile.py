@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from ..results import BangBangProfile
 from ..simulation.exact import PiecewiseConstant
 from ..tolerances import FINAL_STATE_RTOL
 from .certificate import SAMPLED_CLAIM, FrictionCertificate, FrictionStatus, certify_friction
-from .contact import FrictionSystem
+from .contact import FrictionRun, FrictionSystem
 from .extremal import Extremal
 from .sampled_certificate import SAMPLED_PATTERN_CLAIM, certify_sampled
 from .sampled_lp import FrictionLP
@@ -76,6 +76,10 @@ class FrictionProfile:
     #: An exact sampled move (``exact_sampled``) found on the way to an uncertified bang-bang one, or None:
     #: the zero-order-hold planner falls back on it when no sequence near this move passes its check.
     alternative: FrictionProfile | None = None
+    #: The event-located run (matrix exponentials) that checked an ``exact_sampled`` move, or None: its
+    #: segments and events give the states at any instant in closed form (the zero-order-hold planner's
+    #: states at the command rate, without locating the same events again).
+    exact_run: FrictionRun | None = field(default=None, repr=False, compare=False)
 
     @property
     def certified(self) -> bool:
@@ -189,6 +193,7 @@ def sampled_profile(lp: FrictionLP, sol, base: BangBangProfile, lb, steps: int, 
         solve_time_s=time.perf_counter() - t0,
         sample_period=dt,
         sample_pattern=np.asarray(sol.pattern, float).copy(),
+        exact_run=run,
     )
 
 

@@ -144,7 +144,7 @@ def plan_time_optimal_friction(
             continuation_steps=0,
             solve_time_s=time.perf_counter() - t0,
         )
-    scale, template = _frictionless_scales(problem, base)
+    scale, template = frictionless_scales(problem, base)
     direction = 1.0 if (problem.target if problem.target is not None else 0.0) >= problem.x0[0] else -1.0
 
     def monotone(tau):
@@ -247,7 +247,7 @@ STRUCTURE_FINER = 1
 STRUCTURE_EVALS = 20
 
 
-def _frictionless_scales(problem: MoveProblem, base: BangBangProfile):
+def frictionless_scales(problem: MoveProblem, base: BangBangProfile):
     """Per-state scale (how large each state gets in the frictionless move) and its velocity-sign
     template (sign of ``v`` at normalised time ``tau``, the first guess of the friction pattern)."""
     grid = np.linspace(0.0, base.duration, 257)

@@ -21,10 +21,11 @@ from ..errors import GoalError, SolverError
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import SampledProfile
-from ..simulation.exact import PiecewiseConstant
+from ..simulation.exact import PiecewiseConstant, simulate_samples
+from ..simulation.modal_response import phi1, phi2
 from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import FINAL_STATE_RTOL
-from .contact import FrictionSystem, simulate_coulomb
+from .contact import STICK, FrictionRun, FrictionSystem, simulate_coulomb
 from .profile import FrictionProfile
 from .sampled_lp import FrictionLP
 from .time_optimal import check_coulomb_force, plan_time_optimal_friction
@@ -74,6 +75,32 @@ def _held_samples(continuous: FrictionProfile, dt: float) -> np.ndarray | None:
     if m < 1 or abs(m * dt - h) > 1e-9 * h:
         return None
     return np.repeat(np.asarray(continuous.levels, float), m)
+
+
+def _states_of_run(problem: MoveProblem, F: float, run: FrictionRun, u: np.ndarray, dt: float) -> np.ndarray:
+    """States at the instants ``k dt`` (``k = 0..K``) of the checked move ``u`` (``K`` commands, N) from its
+    event-located run (rigid-body friction): the run's segments (events located, mode and level constant)
+    give the rigid body in closed form at any instant; the modes do not feel the friction, so theirs are the
+    linear zero-order-hold response (matrix exponentials).  No events are located again."""
+    model = problem.model
+    K = u.size
+    times = dt * np.arange(K + 1)
+    t0 = np.array([seg[0] for seg in run.segments])
+    mode = np.array([seg[2] for seg in run.segments], float)
+    level = np.array([seg[3] for seg in run.segments], float)
+    x_start = np.asarray(run.starts, float)
+    i = np.maximum(np.searchsorted(t0, times, side="right") - 1, 0)
+    h = times - t0[i]
+    a = model.b0 * level[i] - abs(model.b0) * F * mode[i]  # v' = c v + a on the segment
+    z = model.c * h
+    p0, v0 = x_start[i, 0], x_start[i, 1]
+    v = v0 * np.exp(z) + a * h * phi1(z)
+    p = p0 + v0 * h * phi1(z) + a * h * h * phi2(z)
+    stuck = mode[i] == STICK
+    v[stuck], p[stuck] = 0.0, p0[stuck]
+    states = simulate_samples(model, problem.x0, u, dt)  # the modes (the rigid rows are replaced)
+    states[:, 0], states[:, 1] = p, v
+    return states
 
 
 def _window(K: int, centres: np.ndarray, width: int) -> np.ndarray:
@@ -223,7 +250,14 @@ def plan_time_optimal_friction_zoh(
         # an exact sampled continuous move on a whole number of command periods: its commands, each
         # held that many periods, are the same input (checked below like any other)
         u = held
-        states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states
+        states = None
+        if continuous.exact_run is not None:  # checked already, by the run that made the move: its states
+            states = _states_of_run(problem, F, continuous.exact_run, u, dt)
+            xT = continuous.final_state
+            if not np.all(np.abs(states[-1] - xT) <= 1e-9 * (np.abs(xT) + np.max(np.abs(states), axis=0))):
+                states = None  # not the run's own end state (never seen): locate the events again
+        if states is None:
+            states = check.run(problem.x0, PiecewiseConstant.from_samples(u, dt), dt * np.arange(u.size + 1)).states
         found[u.size] = (u, states)
         K0 = u.size
     try:

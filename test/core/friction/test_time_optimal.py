@@ -34,13 +34,8 @@ from flexmotion_ros.core.errors import FlexmotionError, SolverError
 from flexmotion_ros.core.friction import profile as profile_mod
 from flexmotion_ros.core.friction import zoh as zoh_mod
 from flexmotion_ros.core.friction.certificate import CLAIM, FrictionStatus
-from flexmotion_ros.core.friction.contact import (
-    FrictionSystem,
-    contact_at_coordinate,
-    rigid_contact,
-    simulate_contact,
-    simulate_coulomb,
-)
+from flexmotion_ros.core.friction.contact import FrictionSystem, simulate_contact, simulate_coulomb
+from flexmotion_ros.core.friction.contact_model import contact_at_coordinate, rigid_contact
 from flexmotion_ros.core.friction.lower_bound import rigid_friction_time
 from flexmotion_ros.core.friction.pattern_search import fastest_samples
 from flexmotion_ros.core.friction.profile import sampled_profile
