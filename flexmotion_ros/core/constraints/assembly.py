@@ -88,6 +88,7 @@ class LimitRows:
         self.deadline = math.inf  # time.perf_counter() past which an LP stops (HiGHS time limit)
         self._kd: dict[int, KData] = {}
         self.run_rows: dict[int, list[set]] = {}  # samples inside runs with limit rows, per K and block (generated)
+        self.coarse_rows: tuple[list[set], int] | None = None  # a coarser level's rows and count (seeds)
         self._at_cache: dict = {}
         self._check_initial()
 
