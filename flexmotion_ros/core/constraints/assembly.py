@@ -88,6 +88,7 @@ class LimitRows:
         self.deadline = math.inf  # time.perf_counter() past which an LP stops (HiGHS time limit)
         self._kd: dict[int, KData] = {}
         self.run_rows: dict[int, list[set]] = {}  # samples inside runs with limit rows, per K and block (generated)
+        self.coarse_rows: tuple[list[set], int] | None = None  # a coarser level's rows and count (seeds)
         self._at_cache: dict = {}
         self._check_initial()
 
@@ -226,18 +227,18 @@ class LimitRows:
                     np.zeros(kk.size),
                     meta=(STATE, kk, b.idx[0], sgn),
                 )
-            # generated rows inside runs
-            for k in sorted(extra[bi]):
-                if k >= K or knot[k] or run[k] < 0:
-                    continue
-                cols, vals = self._run_state(k, 0, bi, seg, run, kd, var, lvar, T)
-                for sgn in (1.0, -1.0):
-                    U.add(
-                        cols,
-                        np.concatenate([sgn * vals[:-1], [sgn * vals[-1] - 1.0]]),
-                        0.0,
-                        meta=(STATE, k, b.idx[0], sgn),
-                    )
+            # generated rows inside runs (each sample: the + row, then the - row)
+            ks = np.array(sorted(extra[bi]), dtype=int)
+            ks = ks[ks < K]
+            ks = ks[~knot[ks] & (run[ks] >= 0)]
+            if ks.size:
+                cols, vals = self._run_states(ks, 0, bi, seg, run, kd, var, lvar, T)
+                sg = np.tile([1.0, -1.0], ks.size)
+                vals = np.repeat(vals, 2, axis=0) * sg[:, None]
+                vals[:, -1] -= 1.0
+                U.add_many(
+                    np.repeat(cols, 2, axis=0), vals, np.zeros(sg.size), meta=(STATE, np.repeat(ks, 2), b.idx[0], sg)
+                )
         # command bounds |v| <= t (scaled) or <= 1
         ub_t, ub_rhs = (-1.0, 0.0) if scaled else (0.0, ubound)
         if scaled:
@@ -288,10 +289,6 @@ class LimitRows:
                         U.add_many(np.column_stack(rc), np.column_stack(rv), np.zeros(edges.size))
         # deflection between samples: cuts, and (smooth) the middle of every free interval
         cuts = [(c.k, c.mode, c.s) for c in self.cuts if c.k < K]
-        if mode == "smooth":
-            for b in self.blocks:
-                if b.mode is not None:
-                    cuts += [(int(k), b.mode, 0.5 * self.dt) for k in F]
         bmode = {b.mode: bi for bi, b in enumerate(self.blocks) if b.mode is not None}
         for k, i, s in cuts:
             if i not in bmode:
@@ -317,6 +314,21 @@ class LimitRows:
                 v_ = sgn * vals
                 v_[-1] -= 1.0
                 U.add(cols, v_, 0.0, meta=(CUT, k, i, sgn), s=s)
+        if mode == "smooth":  # the middle of every free interval (free samples are knots: no run terms)
+            s = 0.5 * self.dt
+            for bi, b in enumerate(self.blocks):
+                if b.mode is None or not F.size:
+                    continue
+                Ps, Gs = self.at(s, b.mode)
+                c0 = cbase[bi] + 2 * kpos[F]
+                cols = np.column_stack([c0, c0 + 1, uvar[F], T[F]])
+                row = np.concatenate([Ps * b.D / b.D[0], [Gs * self.um / b.D[0], 0.0]])
+                sg = np.tile([1.0, -1.0], F.size)
+                vals = row[None, :] * sg[:, None]
+                vals[:, -1] -= 1.0
+                U.add_many(
+                    np.repeat(cols, 2, axis=0), vals, np.zeros(sg.size), meta=(CUT, np.repeat(F, 2), b.mode, sg), s=s
+                )
         # bounds, cost
         lo = np.full(nv, -np.inf)
         hi = np.full(nv, np.inf)
@@ -355,6 +367,18 @@ class LimitRows:
             meta=U.meta_array(),
             s=U.s_array(),
         )
+
+    def _run_states(self, ks, c, bi, seg, run, kd, var, lvar, T):
+        """:meth:`_run_state` at the samples ``ks`` (all inside runs): columns and values, one row per sample."""
+        r = run[ks]
+        p = seg.start[r]
+        j = ks - p
+        P, _gh, psi, R = kd.blk[bi]
+        d = len(self.blocks[bi].idx)
+        cols = np.column_stack([var(p, cc) for cc in range(d)] + [lvar[r], T[ks]])
+        tco = self.slew * seg.slope[r] * R[j, c] if self.slew is not None else np.zeros(ks.size)
+        vals = np.column_stack([P[j, c, cc] for cc in range(d)] + [psi[j, c], tco])
+        return cols, vals
 
     def _run_state(self, k, c, bi, seg, run, kd, var, lvar, T):
         """Columns/values of component ``c`` of block ``bi``'s state at sample ``k`` inside a run; t last."""

@@ -161,7 +161,7 @@ class Level:
         as "infeasible".  Every count claimed impossible is proved by :meth:`prove`.
         """
         K = max(guess, lo + 1)
-        step = 1
+        step = down = 1
         widths: list[int] = []
         for _ in range(200):
             self.probe(K)
@@ -182,6 +182,12 @@ class Level:
                 cand = top + step if cand is None or cand <= top else min(cand, 2 * top + 1)
                 cand = min(cand, max(self.K_cap, top + 1))  # the cap itself is probed before giving up
                 step *= 2
+            elif cand is None and below == lo:
+                # one feasible count and nothing below it probed: the guess is usually within a sample or two
+                # (extrapolated from the coarser levels), so step down from it, doubling, rather than bisect
+                # towards ``lo`` (the unlimited optimum: hundreds of samples below at 1 kHz)
+                cand = max(hi - down, lo + 1)
+                down *= 2
             else:
                 widths.append(hi - below)
                 stalled = len(widths) >= 3 and widths[-1] > widths[-3] // 2

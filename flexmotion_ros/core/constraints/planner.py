@@ -225,12 +225,13 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
     rates = [rate]
     while K0 * rates[0] / rate > FULL_SAMPLES:
         rates.insert(0, rates[0] / COARSE_FACTOR)
-    ref, times, solves, skipped = None, [], 0, []
+    ref, seed, times, solves, skipped = None, None, [], 0, []
     level = None
     for r in rates:
         final = r == rate
         width = 0 if ref is None else MAP_WIDTH * COARSE_FACTOR + 2
         level = Level(problem, r, limits, round(K_soft * r / rate) + 10, lp if final else None, ref, width)
+        level.lp.coarse_rows = seed
         level.reachable = K0 if final else None
         level.deadline = level.lp.deadline = deadline
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
@@ -239,7 +240,7 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
             K = level.fewest(guess, lo)
         except BeyondCap as exc:
             if not final:
-                ref = None  # this coarse rate finds nothing below the soft cap: skip it (it only guides)
+                ref = seed = None  # this coarse rate finds nothing below the soft cap: skip it (it only guides)
                 skipped.append(r)
                 solves += level.lp.solves
                 continue
@@ -255,7 +256,7 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
                 raise
             # a coarse rate the user never asked for cannot steer a mode, or finds nothing below
             # the cap: skip it (it only guides the search)
-            ref = None
+            ref = seed = None
             skipped.append(r)
             solves += level.lp.solves
             continue
@@ -263,6 +264,7 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
         times.append((1.0 / r, (x if x is not None and K - 1 <= x <= K else K) / r))
         if not final:
             ref = level.reference(K if K - 1 not in level.sols else K - 1)
+            seed = (level.lp.run_rows[ref[1]], ref[1]) if ref[1] in level.lp.run_rows else None
             solves += level.lp.solves
     coarse_time = time.perf_counter() - t0
     accepted = None
