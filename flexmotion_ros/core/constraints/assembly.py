@@ -382,12 +382,5 @@ class LimitRows:
 
     def _run_state(self, k, c, bi, seg, run, kd, var, lvar, T):
         """Columns/values of component ``c`` of block ``bi``'s state at sample ``k`` inside a run; t last."""
-        r = run[k]
-        p = seg.start[r]
-        j = k - p
-        P, _gh, psi, R = kd.blk[bi]
-        d = len(self.blocks[bi].idx)
-        cols = [var(p, cc) for cc in range(d)] + [lvar[r], T[k]]
-        tco = self.slew * seg.slope[r] * R[j, c] if self.slew is not None else 0.0
-        vals = [P[j, c, cc] for cc in range(d)] + [psi[j, c], tco]
-        return np.array(cols), np.array(vals, float)
+        cols, vals = self._run_states(np.array([k]), c, bi, seg, run, kd, var, lvar, T)
+        return cols[0], vals[0]

@@ -22,17 +22,7 @@ from flexmotion_ros.core.friction.zoh import plan_time_optimal_friction_zoh
 from flexmotion_ros.core.simulation.exact import PiecewiseConstant
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 
-
-def fuzz_1():
-    """Seed-18 fuzz case 1: an exact sampled move of 35 x 0.07 s (7 command periods at 100 Hz each)."""
-    m = ModalModel(
-        b0=1.003176367731772,
-        c=-0.2676289595285799,
-        omega=(0.6491458111072382, 1.8130612182653145, 21.262943145875255, 42.177984253296174),
-        zeta=(0.25018047229182244, 0.29684426386984125, 0.2062001304227801, 0.013590468236303633),
-        b=(1.4187124737392933, 1.8335021906310824, 0.32723066781884114, -0.4713028453796907),
-    )
-    return MoveProblem(m, 3.2089852554055973, [0.0] * m.n_states, -0.17455234139414605), 1.5344075972967939
+from .test_sampled_certificate import fuzz_1  # seed-18 case 1: an exact sampled move of 35 x 0.07 s
 
 
 def fuzz_3():
