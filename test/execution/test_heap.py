@@ -18,6 +18,7 @@ from flexmotion_ros.execution.sample_record import SampleRecord
 from flexmotion_ros.execution.heap import resident_zeros
 from flexmotion_ros.execution.records import SignalLog
 from flexmotion_ros.execution.stream_ipc import SharedProgress
+from flexmotion_ros.execution.stream_trace import COLUMNS, StreamTrace
 
 def rss():
     with open("/proc/self/status") as f:
@@ -25,7 +26,7 @@ def rss():
 
 before = rss()
 made = {make}
-print(rss() - before)
+print(rss() - before, {size})
 """
 
 
@@ -37,15 +38,28 @@ print(rss() - before)
         ("SampleRecord(400_000)", 400_000 * 2 * 8),
         ("SignalLog(200_000, 3)", 200_000 * (8 + 3 * 8)),
         ("SharedProgress(rows=1 << 16)", 8 * (1 << 16) * 14),
+        ("StreamTrace('/dev/null', rows=100_000)", "100_000 * len(COLUMNS) * 8"),
     ],
-    ids=["resident_zeros", "stream send-time record", "identification log", "stream process sample ring"],
+    ids=[
+        "resident_zeros",
+        "stream send-time record",
+        "identification log",
+        "stream process sample ring",
+        "stream trace",
+    ],
 )
 def test_rings_are_resident_when_made(make, size):
     out = subprocess.run(
-        [sys.executable, "-c", MEASURE.format(make=make)], capture_output=True, text=True, check=True, timeout=120
+        [sys.executable, "-c", MEASURE.format(make=make, size=size)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
     )
-    grew = int(out.stdout.split()[-1])
-    # made with np.zeros (or a fresh mmap), ~0 of it is resident until first written
+    grew, size = (int(v) for v in out.stdout.split()[-2:])
+    # made with np.zeros (or a fresh mmap), ~0 of it is resident until first written; numpy asks for huge
+    # pages on large arrays, so the deadline loop would take a 2 MiB zeroing fault (4 ms at 1 kHz,
+    # every 12,483 trace rows) at each boundary
     assert grew >= 0.9 * size, f"{make}: {grew / 2**20:.2f} MiB resident of {size / 2**20:.2f} MiB"
 
 
