@@ -27,6 +27,10 @@ from flexmotion_ros.core import (
     simulate,
 )
 
+# a one-phase stop within this much (relative to the move's scale) of the target counts as landing on
+# it: 64 eps, the rounding of the closed-form stop distance; it lowers the bound by at most
+# 2 sqrt(STOP_RTOL) ~ 2.4e-7 relative, and only where the stop lands there
+STOP_RTOL = 64.0 * np.finfo(float).eps
 OPT_DELTA = 1e-3  # relative optimality that must be proved by weak duality (see proved_optimality)
 
 
@@ -99,6 +103,12 @@ def rigid_min_time(model: ModalModel, u_max: float, p: float, v: float, fixed_po
         # the second phase can stop the body once s * v1 >= 0
         t_lo = 0.0 if s * v >= 0.0 else _stop_time(b0, c, v, u1)
         f_lo = end(t_lo)[0]
+        if t_lo > 0.0 and abs(f_lo) <= STOP_RTOL * max(abs(p), abs(v) * t_lo, a * t_lo * t_lo):
+            # one full bang against v stops the body on the target (within rounding): past t_lo the
+            # final position is flat (quadratic in t1 - t_lo), so a root search there would add
+            # ~sqrt(rounding) to the time; the closed-form stop is the candidate
+            best = min(best, t_lo)
+            continue
         if s * f_lo > 0.0:
             continue  # overshoots even with the shortest first phase
         if f_lo == 0.0:

@@ -69,6 +69,26 @@ def test_stop_exactly_where_the_free_stop_ends(b0, u_max, v, stop, T):
         assert fixed.switch_times.size == 0
 
 
+def test_one_bang_stop_on_the_target_is_the_reference_minimum():
+    """A damped rigid body (one undamped mode) braked by one full bang stops, within rounding, on
+    the target (a case hypothesis found replanning).  The reference's root search in the first
+    phase's length is flat there (quadratic), so it used to give ~sqrt(rounding) too much time and the
+    plan's correct T* = t_stop seemed to beat the rigid-body minimum by 1.1e-7 relative."""
+    model = ModalModel(
+        b0=-0.2171196699034846, c=-1.9330367946433071, omega=(22.530278347427398,),
+        zeta=(0.0,), b=(0.37782299220926774,),
+    )  # fmt: skip
+    u_max = 0.7487201123422123
+    x0 = [-0.0036133843365933165, -0.012100175739656474, -0.0005550707090549378, 0.01255561260458926]
+    problem = state_to_rest(model, u_max, x0, -0.004024703258424338)
+    p, v = (float(z) for z in problem.shifted_initial()[:2])
+    a = abs(model.b0) * u_max
+    t_stop = math.log1p(-model.c * abs(v) / a) / -model.c  # full braking against v, closed form
+    assert rigid_min_time(model, u_max, p, v, True) == pytest.approx(t_stop, rel=1e-14)
+    profile = plan_and_check(problem)  # includes T* >= rigid minimum (1 - 1e-9)
+    assert profile.duration == pytest.approx(t_stop, rel=1e-12)
+
+
 # ------------------------------------------- rigid body: closed-form optimum
 @st.composite
 def rigid_problems(draw):
