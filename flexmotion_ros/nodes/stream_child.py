@@ -24,6 +24,20 @@ otherwise; a user's ``RMW_FASTRTPS_PUBLICATION_MODE`` is left alone.  At the
 end (:func:`open_output`'s ``close``) the child waits up to
 :data:`FLUSH_TIMEOUT_S` for the readers to acknowledge what was sent, the
 hold included, before the publisher goes.
+
+Under ``stream_priority`` the stream process's participant also has only
+UDP for its data (Fast DDS's ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``, again in
+this process only): with the shared-memory transport, the sending thread
+(asynchronous) or ``publish`` itself (synchronous) pushes each sample into
+every reader's port under a mutex that lives in memory shared with the
+reader's process; a reader of normal priority preempted while holding it
+(a time slice on a loaded machine: 2-4 ms) kept the sending thread waiting
+with the writer's own mutex held, and the next ``publish`` waited for that
+(the 1.9-3.0 ms blocked publishes of the 1 kHz storm, no run-queue wait).
+A loopback ``sendto`` takes no lock another process holds.
+:data:`TRANSPORTS_ENV` chooses otherwise (``DEFAULT``: Fast DDS's own
+choice, shared memory included); a user's ``FASTDDS_BUILTIN_TRANSPORTS`` or
+XML profile is left alone.
 """
 
 from __future__ import annotations
@@ -43,6 +57,11 @@ from . import messages
 #: The stream process's publication mode (``SYNCHRONOUS`` / ``ASYNCHRONOUS``); unset: asynchronous under
 #: ``stream_priority``, Fast DDS's default otherwise.
 PUBLICATION_MODE_ENV = "FLEXMOTION_STREAM_PUBLICATION_MODE"
+#: The stream process's Fast DDS transports (``FASTDDS_BUILTIN_TRANSPORTS`` values, e.g. ``DEFAULT``, ``UDPv4``);
+#: unset: UDP only under ``stream_priority``, Fast DDS's default otherwise.
+TRANSPORTS_ENV = "FLEXMOTION_STREAM_TRANSPORTS"
+#: Environment variables through which a user already configures Fast DDS's transports (then left alone).
+USER_TRANSPORT_ENV = ("FASTDDS_BUILTIN_TRANSPORTS", "FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 #: How long the end of a configuration waits for the readers to acknowledge the last samples (s).
 FLUSH_TIMEOUT_S = 0.5
 
@@ -57,12 +76,30 @@ def publication_mode(priority: int, environ: dict[str, str]) -> str | None:
     return "ASYNCHRONOUS"
 
 
+def builtin_transports(priority: int, environ: dict[str, str]) -> str | None:
+    """``FASTDDS_BUILTIN_TRANSPORTS`` for the stream process (None: leave it as it is; module docstring)."""
+    chosen = environ.get(TRANSPORTS_ENV, "")
+    if chosen:
+        return chosen
+    if priority <= 0 or any(environ.get(name) for name in USER_TRANSPORT_ENV):
+        return None
+    return "UDPv4"
+
+
+def stream_environment(priority: int, environ: dict[str, str]) -> dict[str, str]:
+    """The variables the stream process sets in its own environment before ``rclpy.init`` (module docstring)."""
+    chosen = {
+        "RMW_FASTRTPS_PUBLICATION_MODE": publication_mode(priority, environ),
+        "FASTDDS_BUILTIN_TRANSPORTS": builtin_transports(priority, environ),
+    }
+    return {name: value for name, value in chosen.items() if value}
+
+
 def open_output(cfg: ChildSettings) -> tuple[Callable[[list], None], Callable[[], int], Callable[[], None]]:
     """``(publish(values), matched_count(), close())`` for the child's stream (module docstring)."""
     if not rclpy.ok():
-        mode = publication_mode(cfg.priority, dict(os.environ))
-        if mode:  # this process only (forked before any participant existed); the first configuration decides
-            os.environ["RMW_FASTRTPS_PUBLICATION_MODE"] = mode
+        # this process only (forked before any participant existed); the first configuration decides
+        os.environ.update(stream_environment(cfg.priority, dict(os.environ)))
         rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(cfg.node_name, namespace=cfg.namespace or "/")
     qos = QoSProfile(
@@ -89,4 +126,13 @@ def open_output(cfg: ChildSettings) -> tuple[Callable[[list], None], Callable[[]
     return publish, pub.get_subscription_count, close
 
 
-__all__ = ["FLUSH_TIMEOUT_S", "PUBLICATION_MODE_ENV", "open_output", "publication_mode"]
+__all__ = [
+    "FLUSH_TIMEOUT_S",
+    "PUBLICATION_MODE_ENV",
+    "TRANSPORTS_ENV",
+    "USER_TRANSPORT_ENV",
+    "builtin_transports",
+    "open_output",
+    "publication_mode",
+    "stream_environment",
+]
