@@ -25,19 +25,12 @@ end (:func:`open_output`'s ``close``) the child waits up to
 :data:`FLUSH_TIMEOUT_S` for the readers to acknowledge what was sent, the
 hold included, before the publisher goes.
 
-Under ``stream_priority`` the stream process's participant also has only
-UDP for its data (Fast DDS's ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4``, again in
-this process only): with the shared-memory transport, the sending thread
-(asynchronous) or ``publish`` itself (synchronous) pushes each sample into
-every reader's port under a mutex that lives in memory shared with the
-reader's process; a reader of normal priority preempted while holding it
-(a time slice on a loaded machine: 2-4 ms) kept the sending thread waiting
-with the writer's own mutex held, and the next ``publish`` waited for that
-(the 1.9-3.0 ms blocked publishes of the 1 kHz storm, no run-queue wait).
-A loopback ``sendto`` takes no lock another process holds.
-:data:`TRANSPORTS_ENV` chooses otherwise (``DEFAULT``: Fast DDS's own
-choice, shared memory included); a user's ``FASTDDS_BUILTIN_TRANSPORTS`` or
-XML profile is left alone.
+The transports are Fast DDS's own choice (shared memory and UDP):
+:data:`TRANSPORTS_ENV` sets ``FASTDDS_BUILTIN_TRANSPORTS`` in this process
+only, for the benchmarks (``bench/storm.py``).  UDP only did not remove the
+rare blocked ``publish`` at 1 kHz (shared memory was suspected: its port's
+mutex lives in the reader's process too); synchronous over UDP blocked more
+(bench/README.md, the storm section).
 """
 
 from __future__ import annotations
@@ -57,11 +50,9 @@ from . import messages
 #: The stream process's publication mode (``SYNCHRONOUS`` / ``ASYNCHRONOUS``); unset: asynchronous under
 #: ``stream_priority``, Fast DDS's default otherwise.
 PUBLICATION_MODE_ENV = "FLEXMOTION_STREAM_PUBLICATION_MODE"
-#: The stream process's Fast DDS transports (``FASTDDS_BUILTIN_TRANSPORTS`` values, e.g. ``DEFAULT``, ``UDPv4``);
-#: unset: UDP only under ``stream_priority``, Fast DDS's default otherwise.
+#: The stream process's Fast DDS transports (a ``FASTDDS_BUILTIN_TRANSPORTS`` value, e.g. ``UDPv4``), for the
+#: benchmarks; unset: Fast DDS's own choice.
 TRANSPORTS_ENV = "FLEXMOTION_STREAM_TRANSPORTS"
-#: Environment variables through which a user already configures Fast DDS's transports (then left alone).
-USER_TRANSPORT_ENV = ("FASTDDS_BUILTIN_TRANSPORTS", "FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 #: How long the end of a configuration waits for the readers to acknowledge the last samples (s).
 FLUSH_TIMEOUT_S = 0.5
 
@@ -76,21 +67,16 @@ def publication_mode(priority: int, environ: dict[str, str]) -> str | None:
     return "ASYNCHRONOUS"
 
 
-def builtin_transports(priority: int, environ: dict[str, str]) -> str | None:
-    """``FASTDDS_BUILTIN_TRANSPORTS`` for the stream process (None: leave it as it is; module docstring)."""
-    chosen = environ.get(TRANSPORTS_ENV, "")
-    if chosen:
-        return chosen
-    if priority <= 0 or any(environ.get(name) for name in USER_TRANSPORT_ENV):
-        return None
-    return "UDPv4"
+def builtin_transports(environ: dict[str, str]) -> str | None:
+    """``FASTDDS_BUILTIN_TRANSPORTS`` for the stream process: :data:`TRANSPORTS_ENV` if set (None: leave it)."""
+    return environ.get(TRANSPORTS_ENV, "") or None
 
 
 def stream_environment(priority: int, environ: dict[str, str]) -> dict[str, str]:
     """The variables the stream process sets in its own environment before ``rclpy.init`` (module docstring)."""
     chosen = {
         "RMW_FASTRTPS_PUBLICATION_MODE": publication_mode(priority, environ),
-        "FASTDDS_BUILTIN_TRANSPORTS": builtin_transports(priority, environ),
+        "FASTDDS_BUILTIN_TRANSPORTS": builtin_transports(environ),
     }
     return {name: value for name, value in chosen.items() if value}
 
@@ -130,7 +116,6 @@ __all__ = [
     "FLUSH_TIMEOUT_S",
     "PUBLICATION_MODE_ENV",
     "TRANSPORTS_ENV",
-    "USER_TRANSPORT_ENV",
     "builtin_transports",
     "open_output",
     "publication_mode",
