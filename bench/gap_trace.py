@@ -44,11 +44,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from flexmotion_ros.execution.stream_trace import (  # noqa: E402
     COLLECTED,
     COLUMNS,
+    CPU_PUBLISHED,
     CPU_SLEPT,
+    CPU_STEP,
     CPU_WOKE,
     DEADLINE,
     MATCHED_END,
     PUBLISH_NS,
+    PUBLISH_PREEMPTED,
+    PUBLISH_SWITCHES,
     PUBLISHED,
     REQUEST_COLUMNS,
     REQUEST_OPS,
@@ -138,6 +142,7 @@ def classify(
     by_cpu = {int(c): np.asarray(v, dtype=np.int64) for c, v in (probes_by_cpu or {}).items()}
     late_over_ms = PROBE_LATE_PERIODS * threshold_ns * 0.5e-6
     wide = trace.shape[1] > STEP_FAULTS if trace.ndim == 2 else False  # a trace with the sleep columns
+    steps = trace.shape[1] > PUBLISH_PREEMPTED if trace.ndim == 2 else False  # ... and the step / publish columns
     req = np.asarray(requests if requests is not None else np.zeros((0, len(REQUEST_COLUMNS))))
     for i in np.flatnonzero(np.diff(t) > threshold_ns):
         gap: dict = {"at_ns": int(t[i]), "ms": round((t[i + 1] - t[i]) * 1e-6, 2)}
@@ -191,8 +196,13 @@ def classify(
         if wide:
             # a late wake: where it slept (its timer) and woke; otherwise the step before ran late too, where it woke
             around = (b[CPU_SLEPT], b[CPU_WOKE]) if cause == "late wake" else (a[CPU_WOKE], b[CPU_SLEPT], b[CPU_WOKE])
+            if steps:  # where each step started and published: a sample due before any sleep has no sleep CPU
+                around += (b[CPU_STEP],) if cause == "late wake" else (a[CPU_STEP], a[CPU_PUBLISHED], b[CPU_STEP])
             cpus = {int(c) for c in around if c >= 0}
             during = (req[:, 2] >= a[STEP_END]) & (req[:, 1] <= b[WOKE]) if len(req) else np.zeros(0, bool)
+            # the publish that took long (this sample's, or the step before's when it overran)
+            slow = b if cause == "publish" else a
+            in_publish = (req[:, 2] >= slow[WOKE]) & (req[:, 1] <= slow[PUBLISHED]) if len(req) else during
             out[-1].update(
                 cpu_slept=int(b[CPU_SLEPT]),
                 cpu_woke=int(b[CPU_WOKE]),
@@ -203,8 +213,18 @@ def classify(
                 sleep_faults=int(b[SLEEP_FAULTS]),
                 prev_step_faults=int(a[STEP_FAULTS]),
                 requests=[REQUEST_OPS[int(o)] if 0 <= o < len(REQUEST_OPS) else "?" for o in req[during, 0]],
+                publish_requests=[
+                    REQUEST_OPS[int(o)] if 0 <= o < len(REQUEST_OPS) else "?" for o in req[in_publish, 0]
+                ],
                 stall=stall_of(cpus, gap.get("probe_ms_by_cpu", {}), late_over_ms),
             )
+            if steps:
+                slow = b if cause == "publish" else a
+                out[-1].update(
+                    cpu_step=int(b[CPU_STEP]),
+                    publish_switches=int(slow[PUBLISH_SWITCHES]),
+                    publish_preempted=int(slow[PUBLISH_PREEMPTED]),
+                )
         else:
             out[-1]["stall"] = stall_of(set(), gap.get("probe_ms_by_cpu", {}), late_over_ms)
     return out

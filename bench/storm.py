@@ -50,11 +50,9 @@ import math
 import os
 import random
 import re
-import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -67,28 +65,21 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
-from deadline_probe import overlapping_gaps, steal_ticks  # noqa: E402 -- beside this script
-from gap_trace import classify, own_gaps, requests_path, stall_counts  # noqa: E402 -- beside this script
-
-RATE_HZ = 200.0
-LIMIT = 3.0
-PARAMS = """/**:
-  ros__parameters:
-    model:
-      b0: 1.0
-      c: 0.0
-      omega: [5.0, 13.0]
-      zeta: [0.01, 0.02]
-      b: [1.0, -0.7]
-    u_max: 10.0
-    rate_hz: {rate!r}
-    limits:
-      position_min: {low!r}
-      position_max: {high!r}
-"""
-#: An answer or a log line naming an internal failure (a Python exception type, a traceback, "unexpected").
-INTERNAL = re.compile(r"Traceback|unexpected|\b[A-Z][A-Za-z]*(Error|Exception)\b")
-STOP_ANSWER_BUDGET_S = 0.050
+from deadline_probe import steal_ticks  # noqa: E402 -- beside this script
+from storm_nodes import (  # noqa: E402 -- beside this script
+    INTERNAL,
+    LIMIT,
+    PARAMS,
+    RATE_HZ,
+    Storm,
+    family_pss_mb,
+    goal_request,
+    rss_mb,
+    start_node,
+    stop_processes,
+    trajectory,
+)
+from storm_report import print_report, stop_summary, stream_gaps  # noqa: E402 -- beside this script
 
 
 def _args() -> argparse.Namespace:
@@ -124,142 +115,6 @@ def stream_priority(args: argparse.Namespace) -> int:
         if name.strip() == "stream_priority":
             return int(float(value))
     return 0
-
-
-def proc_mb(path: str, field: str) -> float:
-    """A ``kB`` field (``VmRSS:``, ``Pss:``) of a /proc file in MB (Linux)."""
-    with open(path) as f:
-        for line in f:
-            if line.startswith(field):
-                return int(line.split()[1]) / 1024.0
-    return math.nan
-
-
-def rss_mb(pid: int) -> float:
-    """Resident set size (MB) of process ``pid``."""
-    return proc_mb(f"/proc/{pid}/status", "VmRSS:")
-
-
-def pss_mb(pid: int) -> float:
-    """Proportional set size (MB) of process ``pid``: shared pages split among their sharers."""
-    return proc_mb(f"/proc/{pid}/smaps_rollup", "Pss:")
-
-
-def family_pss_mb(pid: int) -> float:
-    """PSS (MB) of process ``pid`` and its direct children (the planning and stream processes, forked:
-    their copy-on-write pages are shared, so RSS would count them twice)."""
-    total = pss_mb(pid)
-    for task in Path(f"/proc/{pid}/task").glob("*/children"):
-        for child in task.read_text().split():
-            try:
-                total += pss_mb(int(child))
-            except OSError:
-                pass  # the child ended meanwhile
-    return total
-
-
-def start_node(
-    exe: str, ns: str, params: Path, extra: list[str], log: Path, env: dict | None = None
-) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", f"flexmotion_ros.nodes.{exe}", "--ros-args", "-r", f"__ns:={ns}"]
-    cmd += ["--params-file", str(params), *[a for x in extra for a in ("-p", x)]]
-    out = open(log, "w")  # noqa: SIM115 -- the child's log, closed when the child ends
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
-    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)
-
-
-class Storm:
-    """This process's node: requests out, commands / states / diagnostics in."""
-
-    def __init__(self, ns: str) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from nav_msgs.srv import GetPlan
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64
-        from std_srvs.srv import Trigger
-        from trajectory_msgs.msg import JointTrajectory
-
-        from flexmotion_ros.nodes.plant_node import PLANT_QOS
-
-        self.node = rclpy.create_node("storm", namespace=ns)
-        self.ns = ns
-        self.lock = threading.Lock()
-        self.state: np.ndarray | None = None
-        self.planner_status: dict = {}
-        self.plant_status: dict = {}
-        n = self.node
-        n.create_subscription(JointState, "joint_states", self._on_state, PLANT_QOS)
-        n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
-        goal_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-        self.goal_pub = n.create_publisher(Float64, "flexmotion_planner/goal", goal_qos)
-        self.jt_pub = n.create_publisher(JointTrajectory, "flexmotion_planner/joint_trajectory", goal_qos)
-        self.move = n.create_client(GetPlan, "flexmotion_planner/move")
-        self.plan = n.create_client(GetPlan, "flexmotion_planner/plan")
-        self.stop = n.create_client(Trigger, "flexmotion_planner/stop")
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(n)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-        self.types = {"GetPlan": GetPlan, "Trigger": Trigger, "Float64": Float64, "JointTrajectory": JointTrajectory}
-
-    def _on_state(self, msg) -> None:
-        from flexmotion_ros.nodes import messages
-
-        x = messages.state_from_joint_state(msg)
-        with self.lock:
-            self.state = x
-
-    def _on_diag(self, msg) -> None:
-        from flexmotion_ros.nodes import messages
-
-        for name, hw, store in (
-            ("flexmotion_planner: motion", f"{self.ns}/flexmotion_planner", "planner_status"),
-            ("flexmotion_plant: simulation", f"{self.ns}/flexmotion_plant", "plant_status"),
-        ):
-            st = messages.diagnostic_values(msg, name, hw)
-            if st is not None:
-                with self.lock:
-                    setattr(self, store, {"message": st[1], "stamp": time.monotonic(), **st[2]})
-
-    def call(self, client, request, timeout: float = 30.0):
-        """(answer or None, round-trip seconds)."""
-        t0 = time.monotonic()
-        fut = client.call_async(request)
-        end = t0 + timeout
-        while not fut.done() and time.monotonic() < end:
-            time.sleep(0.0005)
-        return (fut.result() if fut.done() else None), time.monotonic() - t0
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1.0)
-        self.thread.join(timeout=5.0)
-        self.node.destroy_node()
-
-
-def goal_request(storm: Storm, x: float):
-    req = storm.types["GetPlan"].Request()
-    req.goal.pose.position.x = float(x)
-    return req
-
-
-def trajectory(storm: Storm, names: list[str], x: float, t: float):
-    from trajectory_msgs.msg import JointTrajectoryPoint
-
-    msg = storm.types["JointTrajectory"]()
-    msg.joint_names = names
-    pt = JointTrajectoryPoint()
-    pt.positions = [float(x)]
-    pt.velocities = [0.0]
-    sec = math.floor(t)
-    pt.time_from_start.sec = int(sec)
-    pt.time_from_start.nanosec = int(round((t - sec) * 1e9)) if t >= 0 else 0
-    if t < 0:
-        pt.time_from_start.sec = -1
-    msg.points = [pt]
-    return msg
 
 
 def run_mode(args, mode: str) -> dict:
@@ -502,26 +357,7 @@ def run_mode(args, mode: str) -> dict:
             rss_tail.append((time.monotonic() - tail_start, rss_mb(planner.pid), family_pss_mb(planner.pid)))
     finally:
         teardown_ns = time.time_ns()  # the stream's gaps are judged up to here (shutdown reconfigures DDS)
-        crashed = {name: p.poll() for name, p in (("planner", planner), ("plant", plant)) if p.poll() is not None}
-        for p in (planner, plant):
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        status = {}
-        for name, p in (("planner", planner), ("plant", plant)):
-            try:
-                status[name] = p.wait(timeout=10.0)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                status[name] = "killed"
-        storm.close()
-        recorder.send_signal(signal.SIGINT)
-        try:
-            recorder.wait(timeout=20.0)
-        except subprocess.TimeoutExpired:
-            recorder.kill()
-        for probe in probes:
-            probe.send_signal(signal.SIGINT)
-            probe.wait(timeout=10.0)
+        crashed, status = stop_processes({"planner": planner, "plant": plant}, storm, recorder, probes)
     steal_s = (steal_ticks() - steal0) / os.sysconf("SC_CLK_TCK")
     duration = time.monotonic() - t_start
     log = planner_log.read_text()
@@ -529,44 +365,13 @@ def run_mode(args, mode: str) -> dict:
     internal_log += [line for line in plant_log.read_text().splitlines() if INTERNAL.search(line)]
     topic_refused = len(re.findall(r"(~/goal|~/joint_trajectory): refused: ", log))
     early_refused = len(re.findall(r"~/joint_trajectory: refused: .*time_from_start: 0.01 s is before", log))
-    recorded = np.load(commands_out) if commands_out.exists() else {"send_ns": np.zeros(0, np.int64), "values": []}
-    t = np.asarray(recorded["send_ns"], dtype=np.int64)
-    last = float(recorded["values"][-1]) if t.size else math.nan
-    t = t[t < teardown_ns]
-    gaps_ms = np.diff(t) * 1e-6 if t.size > 1 else np.array([0.0])
-    two_periods_ns = int(2e9 / args.rate)
-    by_cpu = {c: np.load(f) for c, f in probe_outs.items() if f.exists()}
-    if t.size > 1:  # the loops ran from before the first command to after the last: the stream's span only
-        by_cpu = {c: v[(v >= t[0]) & (v <= t[-1])] for c, v in by_cpu.items()}
-    shared = np.zeros(max(int(np.sum(np.diff(t) > two_periods_ns)), 0) if t.size > 1 else 0, dtype=bool)
-    for v in by_cpu.values():  # a stream gap overlapping a gap of any of the loops (before they were pinned: the one)
-        if t.size > 1:
-            shared |= overlapping_gaps(t, v, two_periods_ns)[1]
-    probe_by_cpu = {
-        c: {
-            "wakes": int(v.size),
-            "gaps_over_two_periods": int(np.sum(np.diff(v) > two_periods_ns)) if v.size > 1 else 0,
-            "gap_max_ms": float(np.diff(v).max() * 1e-6) if v.size > 1 else 0.0,
-        }
-        for c, v in by_cpu.items()
-    }
-    mid_stops = [s for s in stops if s["moving"] and s["after"] is not None]
-    trace = np.load(trace_out) if trace_out.exists() else np.zeros((0, 11))
-    requests_out = Path(requests_path(str(trace_out)))
-    requests = np.load(requests_out) if requests_out.exists() else None
-    explained = classify(t, trace, two_periods_ns, probes_by_cpu=by_cpu, requests=requests)
-    causes: dict[str, int] = {}
-    for g in explained:
-        causes[g["cause"]] = causes.get(g["cause"], 0) + 1
-    stalls = stall_counts(explained)
-    sender = own_gaps(trace, two_periods_ns, teardown_ns) if len(trace) else np.zeros((0, 2))
+    stream = stream_gaps(commands_out, trace_out, probe_outs, args.rate, teardown_ns)
     out.update(
         sent=sent,
         duration_s=duration,
         kinds=kinds,
         crashes=crashed,
         exit_status=status,
-        last_command=last,
         internal_error_texts=len(internal_answers) + len(internal_log),
         internal_examples=(internal_answers + internal_log)[:5],
         invalid_sent=invalid["sent"] + topic_invalid,
@@ -576,49 +381,10 @@ def run_mode(args, mode: str) -> dict:
         invalid_unrefused=invalid["unrefused"][:5],
         early_sent=early,
         early_refused=early_refused,
-        stops=len(stops),
-        mid_move_stops=len(mid_stops),
-        stop_answer_ms=[round(s["answer_s"] * 1e3, 3) for s in mid_stops],
-        stops_within_50ms=sum(s["answer_s"] <= STOP_ANSWER_BUDGET_S for s in mid_stops),
-        # a stop whose plan overran its look-ahead (or found the timeline changed) is planned again from further
-        # ahead; its answer says "planned N times": the others must start within the look-ahead they were given
-        stops_overran=sum(s["replanned"] for s in mid_stops),
-        # a ready stop is taken within READY_STOP_LEADS look-aheads (its answer says how many)
-        stops_within_lead=sum(s["after"] <= s["lead"] * s["leads"] for s in mid_stops if not s["replanned"]),
-        stop_after_samples=[s["after"] for s in mid_stops],
-        late_stop_texts=[s["text"] for s in mid_stops if not s["replanned"] and s["after"] > s["lead"] * s["leads"]],
-        commands=int(t.size),
-        gap_max_ms=float(gaps_ms.max()),
-        gaps_over_two_periods=int(np.sum(gaps_ms > 2e3 / args.rate)),
-        gap_at_ns=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.flatnonzero(gaps_ms > 2e3 / args.rate)[:40]],
-        largest_gaps=[[int(t[i]), round(float(gaps_ms[i]), 1)] for i in np.argsort(gaps_ms)[::-1][:10]],
-        gaps_shared_with_probe=int(shared.sum()),
-        # the loop pinned to the CPU the stream thread slept or woke on was late too: the machine stalled that CPU
-        gap_stalls=stalls,
-        gaps_machine_stall=stalls.get("same CPU", 0),
-        gaps_not_machine_stall=len(explained) - stalls.get("same CPU", 0),
-        gap_causes_machine_stall={
-            c: sum(g["cause"] == c and g["stall"] == "same CPU" for g in explained) for c in causes
-        },
-        gaps_not_machine_stall_explained=[g for g in explained if g["stall"] != "same CPU"][:40],
-        gap_causes=causes,
-        # the bare loop (another process) was late too during the gap: the machine stalled both (by cause)
-        gap_causes_probe_late={
-            c: sum(g["cause"] == c and (g.get("probe_ms") or 0.0) > 1.5e3 / args.rate for g in explained)
-            for c in causes
-        },
-        gaps_explained=explained[:40],
-        sender_gaps_over_two_periods=len(sender),
-        sender_gap_max_ms=float(sender[:, 1].max()) if len(sender) else 0.0,
-        traced_samples=len(trace),
-        probe_by_cpu=probe_by_cpu,
-        probe_wakes=sum(v["wakes"] for v in probe_by_cpu.values()),
-        probe_gaps_over_two_periods=sum(v["gaps_over_two_periods"] for v in probe_by_cpu.values()),
-        probe_gap_max_ms=max((v["gap_max_ms"] for v in probe_by_cpu.values()), default=0.0),
+        **stop_summary(stops),
         load_average=[round(x, 2) for x in os.getloadavg()],
         load_at_start=load0,
         steal_s=steal_s,
-        gap_p999_ms=float(np.percentile(gaps_ms, 99.9)),
         settled_checked=len(settled),
         settled_ok=int(sum(e <= 1e-9 for e in settled)),
         settled_max_error=float(max(settled)) if settled else math.nan,
@@ -628,6 +394,7 @@ def run_mode(args, mode: str) -> dict:
         rss_mb=rss,
         rss_tail_mb=rss_tail,
         logs=str(tmp),
+        **stream,
     )
     return out
 
@@ -645,71 +412,7 @@ def main() -> None:
         for r in results:
             print(json.dumps(r))
         return
-    load = os.getloadavg()
-    print(f"load average at the start of each mode: {[r['load_at_start'] for r in results]}")
-    print(
-        f"storm: {args.requests} requests per mode, seed {args.seed}, {args.rate:g} Hz two-mode machine, planner and "
-        f"plant as processes; load average {load[0]:.1f} on {os.cpu_count()} CPUs"
-    )
-    for r in results:
-        ans = np.array(r["stop_answer_ms"]) if r["stop_answer_ms"] else np.array([math.nan])
-        after = np.array(r["stop_after_samples"] or [math.nan], float)
-        print()
-        print(f"[{r['mode']}] {r['sent']} requests in {r['duration_s']:.1f} s; mix {r['kinds']}")
-        print(f"  crashes                      {r['crashes'] or 0}   exit status {r['exit_status']}")
-        print(f"  internal error texts         {r['internal_error_texts']}  {r['internal_examples']}")
-        print(
-            f"  invalid refused with reason  {r['invalid_refused']}/{r['invalid_sent']} "
-            f"(topics: {r['topic_refusals_logged']} refusals logged for {r['invalid_topic_sent']} sent; too-early "
-            f"arrivals, judged only by planning: {r['early_refused']} of {r['early_sent']} refused, the others "
-            "superseded by a newer goal before planned)"
-        )
-        print(
-            f"  mid-move stops               {r['mid_move_stops']} (of {r['stops']} stops): answered within 50 ms "
-            f"{r['stops_within_50ms']}, answer ms median {np.median(ans):.1f} p99 {np.percentile(ans, 99):.1f} "
-            f"max {ans.max():.1f}; applied within the look-ahead {r['stops_within_lead']}, samples after the request "
-            f"median {np.nanmedian(after):.0f} max {np.nanmax(after):.0f} ({r['stops_overran']} overran and were replanned)"
-        )
-        print(
-            f"  stream                       {r['commands']} commands; gap max {r['gap_max_ms']:.1f} ms "
-            f"(p99.9 {r['gap_p999_ms']:.2f} ms); gaps over two periods ({2e3 / args.rate:g} ms): "
-            f"{r['gaps_over_two_periods']}; last command {r['last_command']}"
-        )
-        print(
-            f"  the gaps' causes             {r['gap_causes']}; the sender's own gaps (its trace, "
-            f"{r['traced_samples']} samples): {r['sender_gaps_over_two_periods']}, max {r['sender_gap_max_ms']:.1f} ms; "
-            f"of them with the bare loop late too {r['gap_causes_probe_late']}"
-        )
-        if r["probe_wakes"]:
-            per_cpu = "; ".join(
-                f"CPU {c}: {v['wakes']} wake-ups, {v['gaps_over_two_periods']} gaps over two periods, max "
-                f"{v['gap_max_ms']:.1f} ms"
-                for c, v in r["probe_by_cpu"].items()
-            )
-            print(
-                f"  bare deadline loops (pinned)  {per_cpu}; stream gaps overlapping one of theirs: "
-                f"{r['gaps_shared_with_probe']} of {r['gaps_over_two_periods']}; "
-                f"CPU stolen by the hypervisor meanwhile: {r['steal_s']:.2f} s"
-            )
-            print(
-                f"  machine stalls               {r['gaps_machine_stall']} of {r['gaps_over_two_periods']} gaps (the "
-                f"loop pinned to the stream thread's CPU late too; by cause {r['gap_causes_machine_stall']}); not: "
-                f"{r['gaps_not_machine_stall']} {r['gap_stalls']}"
-            )
-            for g in r["gaps_not_machine_stall_explained"][:10]:
-                print(f"    not a machine stall: {g}")
-        if r["mode"] == "lockstep":
-            print(
-                f"  settled moves at rest        {r['settled_ok']}/{r['settled_checked']} at the target, at rest "
-                f"(max error {r['settled_max_error']:.2g})"
-            )
-        print(f"  goals superseded / cancelled {r['goals_superseded']} / {r['goals_cancelled']}")
-        print("  planner RSS MB               " + ", ".join(f"{n}: {m:.1f}" for n, m in r["rss_mb"]))
-        if r["rss_tail_mb"]:
-            print(
-                "  after the storm, s: RSS MB (PSS MB with its child processes) "
-                + ", ".join(f"{t:.0f}: {m:.1f} ({f:.1f})" for t, m, f in r["rss_tail_mb"])
-            )
+    print_report(results, args)
 
 
 if __name__ == "__main__":

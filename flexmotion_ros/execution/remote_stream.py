@@ -3,7 +3,7 @@
 The deadline loop and the ``commands`` publisher run in a child process
 (:mod:`.stream_process`); the planner keeps every decision.  This object
 offers the stream's interface (timeline snapshots and versions, ``start_now``,
-``splice``, ``stop`` with its :class:`~.command_stream.StreamHalt`, the
+``splice``, ``stop`` with its :class:`~.stream_halt.StreamHalt`, the
 samples sent and their timing, ``time_of``) and keeps a mirror of the child's
 timeline: the planner's own :class:`~.timeline.Segment` objects (with their
 records), pruned from the child's progress by the rule the child's loop

@@ -149,12 +149,13 @@ class _Child:
         self.progress.set_inputs(cfg.inputs)
 
         def publish_values(value) -> None:
-            delay = trace.run_delay() if trace is not None else 0.0
+            if trace is not None:
+                trace.before_publish()
             stream.sent_ns = time.time_ns()  # just before DDS stamps it (the feedback pairs readings with it)
             row = [float(value)] * cfg.inputs if np.ndim(value) == 0 else [float(v) for v in np.ravel(value)]
             publish(row)
             if trace is not None:
-                trace.published(stream.sent_ns, delay)
+                trace.published(stream.sent_ns)
 
         def on_start(seg: Segment) -> None:
             stream.pending[0] = float(seg.info)

@@ -51,7 +51,10 @@ TRACE_ROWS = 1_200_000
 #: the instant the sleep was called, the CPU the thread slept on and the one it woke on (-1: unknown), and inside
 #: the sleep call: the voluntary and involuntary context switches, the times the thread was switched in, its
 #: run-queue wait and CPU time (ns), and its page faults (minor + major); and the page faults from the wake-up to
-#: the end of the step.  Monotonic columns in s.
+#: the end of the step.  Last, around ``publish`` (:meth:`StreamTrace.before_publish`, :meth:`StreamTrace.published`):
+#: the CPU the step ran on before publishing (whether or not it slept: the step's start) and after, and the
+#: voluntary context switches (a block: a lock, DDS's or the interpreter's) and involuntary ones (preempted)
+#: inside the call.  Monotonic columns in s.
 COLUMNS = (
     "k",
     "deadline",
@@ -74,6 +77,10 @@ COLUMNS = (
     "sleep_cpu_ns",
     "sleep_faults",
     "step_faults",
+    "cpu_step",
+    "cpu_published",
+    "publish_switches",
+    "publish_preempted",
 )
 (
     K,
@@ -97,6 +104,10 @@ COLUMNS = (
     SLEEP_CPU_NS,
     SLEEP_FAULTS,
     STEP_FAULTS,
+    CPU_STEP,
+    CPU_PUBLISHED,
+    PUBLISH_SWITCHES,
+    PUBLISH_PREEMPTED,
 ) = range(len(COLUMNS))
 #: Columns of the request loop's record (:func:`requests_path`): the request (:data:`REQUEST_OPS` index), the
 #: instants its handling started and ended (monotonic s).
@@ -151,6 +162,8 @@ class StreamTrace:
         self._published = 0.0
         self._slack = (0.0, 0.0, -1.0)
         self._delay = (0.0, 0.0)
+        self._before: tuple[float, int, int, int] = (0.0, -1, 0, 0)  # run delay, CPU, switches before publish
+        self._around: tuple[float, ...] = (-1.0, -1.0, 0.0, 0.0)
         self._schedstat: tuple[int, int] | None = None  # (thread id, its schedstat fd)
         self._sleep: tuple[float, ...] = NO_SLEEP
         self._wake_faults = -1
@@ -216,11 +229,20 @@ class StreamTrace:
                 self._requests[n] = (REQUEST_OPS.index(op) if op in REQUEST_OPS else -1, start, end)
                 self._n_requests = n + 1
 
-    def published(self, publish_ns: int, delay_before: float) -> None:
-        """Publish returned (``publish_ns``: the system time just before it, ns; the run delay then, ns)."""
+    def before_publish(self) -> None:
+        """Just before ``publish``: the run delay, the CPU and the context switches so far (:meth:`published`)."""
+        vol, inv, _ = _faults()
+        self._before = (self.run_delay(), self._cpu(), vol, inv)
+
+    def published(self, publish_ns: int) -> None:
+        """Publish returned (``publish_ns``: the system time just before it, ns); :meth:`before_publish` before it."""
         self._publish_ns = publish_ns
         self._published = time.monotonic()
-        self._delay = (delay_before, self.run_delay())
+        cpu = self._cpu()
+        vol, inv, _ = _faults()
+        delay, cpu0, vol0, inv0 = self._before
+        self._delay = (delay, self.run_delay())
+        self._around = (float(cpu0), float(cpu), float(vol - vol0), float(inv - inv0))
 
     def slack(self, start: float, matched_end: float, collected: int) -> None:
         """The slack work after a sample: its start, the matched count's end (monotonic s), the generation collected."""
@@ -243,11 +265,13 @@ class StreamTrace:
                 *self._delay,
                 *self._sleep,
                 float(faults),
+                *self._around,
             )
             self._n = n + 1
         self._slack = (0.0, 0.0, -1.0)
         self._sleep = NO_SLEEP
         self._wake_faults = -1
+        self._around = (-1.0, -1.0, 0.0, 0.0)
 
     def save(self) -> None:
         """Write the rows recorded so far (appending to what an earlier configuration of the child wrote)."""

@@ -91,7 +91,7 @@ activates itself.
 Safety: whatever ends the stream -- deactivation, shutdown (Ctrl-C,
 SIGTERM, ``destroy_node``), a fault in the stream thread -- the last command
 on ``commands`` is the hold (0.0), sent before the context goes away, and the
-log says so (:class:`~flexmotion_ros.execution.command_stream.StreamHalt`).
+log says so (:class:`~flexmotion_ros.execution.stream_halt.StreamHalt`).
 ``~/stop`` splices a stop planned in advance (verified like every plan,
 :class:`~flexmotion_ros.execution.splice.StopPreparer`: from the state
 predicted at checkpoints just ahead of the stream) a few samples after the

@@ -24,6 +24,13 @@ otherwise; a user's ``RMW_FASTRTPS_PUBLICATION_MODE`` is left alone.  At the
 end (:func:`open_output`'s ``close``) the child waits up to
 :data:`FLUSH_TIMEOUT_S` for the readers to acknowledge what was sent, the
 hold included, before the publisher goes.
+
+The transports are Fast DDS's own choice (shared memory and UDP):
+:data:`TRANSPORTS_ENV` sets ``FASTDDS_BUILTIN_TRANSPORTS`` in this process
+only, for the benchmarks (``bench/storm.py``).  UDP only did not remove the
+rare blocked ``publish`` at 1 kHz (shared memory was suspected: its port's
+mutex lives in the reader's process too); synchronous over UDP blocked more
+(bench/README.md, the storm section).
 """
 
 from __future__ import annotations
@@ -43,6 +50,9 @@ from . import messages
 #: The stream process's publication mode (``SYNCHRONOUS`` / ``ASYNCHRONOUS``); unset: asynchronous under
 #: ``stream_priority``, Fast DDS's default otherwise.
 PUBLICATION_MODE_ENV = "FLEXMOTION_STREAM_PUBLICATION_MODE"
+#: The stream process's Fast DDS transports (a ``FASTDDS_BUILTIN_TRANSPORTS`` value, e.g. ``UDPv4``), for the
+#: benchmarks; unset: Fast DDS's own choice.
+TRANSPORTS_ENV = "FLEXMOTION_STREAM_TRANSPORTS"
 #: How long the end of a configuration waits for the readers to acknowledge the last samples (s).
 FLUSH_TIMEOUT_S = 0.5
 
@@ -57,12 +67,25 @@ def publication_mode(priority: int, environ: dict[str, str]) -> str | None:
     return "ASYNCHRONOUS"
 
 
+def builtin_transports(environ: dict[str, str]) -> str | None:
+    """``FASTDDS_BUILTIN_TRANSPORTS`` for the stream process: :data:`TRANSPORTS_ENV` if set (None: leave it)."""
+    return environ.get(TRANSPORTS_ENV, "") or None
+
+
+def stream_environment(priority: int, environ: dict[str, str]) -> dict[str, str]:
+    """The variables the stream process sets in its own environment before ``rclpy.init`` (module docstring)."""
+    chosen = {
+        "RMW_FASTRTPS_PUBLICATION_MODE": publication_mode(priority, environ),
+        "FASTDDS_BUILTIN_TRANSPORTS": builtin_transports(environ),
+    }
+    return {name: value for name, value in chosen.items() if value}
+
+
 def open_output(cfg: ChildSettings) -> tuple[Callable[[list], None], Callable[[], int], Callable[[], None]]:
     """``(publish(values), matched_count(), close())`` for the child's stream (module docstring)."""
     if not rclpy.ok():
-        mode = publication_mode(cfg.priority, dict(os.environ))
-        if mode:  # this process only (forked before any participant existed); the first configuration decides
-            os.environ["RMW_FASTRTPS_PUBLICATION_MODE"] = mode
+        # this process only (forked before any participant existed); the first configuration decides
+        os.environ.update(stream_environment(cfg.priority, dict(os.environ)))
         rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(cfg.node_name, namespace=cfg.namespace or "/")
     qos = QoSProfile(
@@ -89,4 +112,12 @@ def open_output(cfg: ChildSettings) -> tuple[Callable[[list], None], Callable[[]
     return publish, pub.get_subscription_count, close
 
 
-__all__ = ["FLUSH_TIMEOUT_S", "PUBLICATION_MODE_ENV", "open_output", "publication_mode"]
+__all__ = [
+    "FLUSH_TIMEOUT_S",
+    "PUBLICATION_MODE_ENV",
+    "TRANSPORTS_ENV",
+    "builtin_transports",
+    "open_output",
+    "publication_mode",
+    "stream_environment",
+]

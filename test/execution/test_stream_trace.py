@@ -18,11 +18,12 @@ def test_the_trace_records_a_row_per_sample_and_appends_across_configurations(tm
     path = str(tmp_path / "trace.npy")
     trace = StreamTrace(path, rows=4)
     for k in range(6):  # two past the capacity: not recorded
-        trace.published(1_000 + k, trace.run_delay())
+        trace.before_publish()
+        trace.published(1_000 + k)
         trace.slack(1.0, 2.0, 0 if k == 1 else -1)
         trace.step_done(k, 0.1 * k, 0.1 * k + 0.01)
     trace.save()
-    trace.published(2_000, 0.0)
+    trace.published(2_000)
     trace.step_done(6, 0.6, 0.61)
     trace.save()  # a second configuration of the child: appended
     rows = np.load(path)
@@ -41,6 +42,7 @@ def _trace(n: int, late: dict[int, float], publish: dict[int, float]) -> np.ndar
         published = woke + publish.get(k, 5e-5)
         step_end = published + 2e-5
         rows[k, :11] = (k, deadline, woke, int(woke * 1e9), published, published, published, -1, step_end, 0.0, 0.0)
+    rows[:, [COLUMNS.index("cpu_step"), COLUMNS.index("cpu_published")]] = -1  # unknown unless a test sets them
     return rows
 
 
@@ -57,9 +59,11 @@ def test_the_sleep_records_the_cpus_and_what_the_thread_went_through_and_a_due_s
     path = str(tmp_path / "trace.npy")
     trace = StreamTrace(path, rows=4)
     trace.sleep(0.002)
-    trace.published(1_000, trace.run_delay())
+    trace.before_publish()
+    trace.published(1_000)
     trace.step_done(0, 0.0, 0.0)
-    trace.published(2_000, trace.run_delay())  # due already: no sleep called
+    trace.before_publish()
+    trace.published(2_000)  # due already: no sleep called
     trace.step_done(1, 0.0, 0.0)
     trace.request("splice", 1.0, 1.5)
     trace.request("not a request", 2.0, 2.5)
@@ -79,8 +83,8 @@ def test_a_gap_is_a_machine_stall_only_where_the_loop_pinned_to_the_stream_threa
     threshold = 2_000_000
     trace = _trace(100, late={20: 4e-3, 50: 4e-3, 80: 4e-3}, publish={})
     cpu = COLUMNS.index("cpu_woke")
-    trace[:, COLUMNS.index("cpu_slept")] = trace[:, cpu] = 0
-    trace[50, COLUMNS.index("cpu_slept")] = trace[50, cpu] = 1
+    trace[:, COLUMNS.index("cpu_slept")] = trace[:, cpu] = trace[:, COLUMNS.index("cpu_step")] = 0
+    trace[50, COLUMNS.index("cpu_slept")] = trace[50, cpu] = trace[50, COLUMNS.index("cpu_step")] = 1
     trace[80, COLUMNS.index("sleep_switches")] = 3  # blocked again after the timer woke it
     sent = trace[:, COLUMNS.index("publish_ns")].astype(np.int64)
     ms = 1_000_000
@@ -105,3 +109,35 @@ def test_a_gap_is_a_machine_stall_only_where_the_loop_pinned_to_the_stream_threa
     assert stall_counts(gaps) == {"same CPU": 1, "other CPU": 1, "none": 1}
     # no pinned loops: unknown
     assert {g["stall"] for g in classify(sent, trace, threshold)} == {"unknown"}
+
+
+def test_a_sample_due_before_any_sleep_is_placed_by_the_cpu_its_step_started_on_and_a_blocked_publish_is_shown():
+    threshold = 2_000_000
+    trace = _trace(100, late={30: 4e-3, 70: 2.5e-3}, publish={69: 3e-3})
+    for c in ("cpu_slept", "cpu_woke"):
+        trace[:, COLUMNS.index(c)] = -1  # every sample was due already: no sleep, no sleep CPU
+    trace[:, COLUMNS.index("cpu_step")] = trace[:, COLUMNS.index("cpu_published")] = 1
+    trace[69, COLUMNS.index("publish_switches")] = 2  # blocked inside publish
+    sent = trace[:, COLUMNS.index("publish_ns")].astype(np.int64)
+    ms, t0 = 1_000_000, int(sent[0])
+    on_time = np.arange(-5, 105) * ms + t0
+    late = np.sort(np.append(on_time[(on_time < t0 + 29 * ms) | (on_time > t0 + 33 * ms)], t0 + 33 * ms))
+    requests = np.array([[REQUEST_OPS.index("splice"), trace[69, 2] + 1e-4, trace[69, 2] + 2e-4]])
+    gaps = classify(sent, trace, threshold, probes_by_cpu={0: on_time, 1: late}, requests=requests)
+    assert [g["cause"] for g in gaps] == ["late wake", "step overran"]
+    assert [g["stall"] for g in gaps] == ["same CPU", "none"]  # was "unknown" without the step's CPU
+    assert gaps[1]["publish_switches"] == 2 and gaps[1]["publish_requests"] == ["splice"]
+    assert gaps[0]["publish_requests"] == []
+
+
+def test_the_trace_records_the_cpu_and_the_context_switches_around_publish(tmp_path):
+    path = str(tmp_path / "trace.npy")
+    trace = StreamTrace(path, rows=2)
+    trace.before_publish()
+    trace.published(1_000)
+    trace.step_done(0, 0.0, 0.0)
+    trace.save()
+    row = np.load(path)[0]
+    cpus = range(os.cpu_count() or 1)
+    assert row[COLUMNS.index("cpu_step")] in cpus and row[COLUMNS.index("cpu_published")] in cpus
+    assert row[COLUMNS.index("publish_switches")] >= 0 and row[COLUMNS.index("publish_preempted")] >= 0
