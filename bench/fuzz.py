@@ -341,6 +341,9 @@ def main() -> None:
     )
     ap.add_argument("--modes-at-most", type=int, default=None, help="run only the cases with at most this many modes")
     ap.add_argument("--modes-at-least", type=int, default=None, help="run only the cases with at least this many modes")
+    ap.add_argument(
+        "--partial-every", type=int, default=0, help="also print the table of the cases so far every N cases run"
+    )
     args = ap.parse_args()
     methods = list(METHODS) if args.methods == "all" else [m.strip() for m in args.methods.split(",") if m.strip()]
     for m in methods:
@@ -367,13 +370,22 @@ def main() -> None:
     start = time.perf_counter()
     for method in methods:
         tally = Tally()
-        for i in indices:
-            case = draw_case(args.seed, i, args.max_modes)
-            if args.modes_at_most is not None and case.model.n_modes > args.modes_at_most:
-                continue
-            if args.modes_at_least is not None and case.model.n_modes < args.modes_at_least:
-                continue
-            tally.add(run_case(method, case, args.rate, args.timeout), case)
+        try:
+            for i in indices:
+                case = draw_case(args.seed, i, args.max_modes)
+                if args.modes_at_most is not None and case.model.n_modes > args.modes_at_most:
+                    continue
+                if args.modes_at_least is not None and case.model.n_modes < args.modes_at_least:
+                    continue
+                tally.add(run_case(method, case, args.rate, args.timeout), case)
+                if args.partial_every and len(tally.outcomes) % args.partial_every == 0:
+                    print(f"\n# partial: {len(tally.outcomes)} cases run, the last {i}", flush=True)
+                    report(method, tally, 0)
+        except KeyboardInterrupt:  # stopped (SIGINT): the table of the cases that finished
+            last = tally.outcomes[-1][1].index if tally.outcomes else None
+            print(f"\n# interrupted: {len(tally.outcomes)} cases finished, the last {last}", flush=True)
+            report(method, tally, args.show)
+            break
         report(method, tally, args.show)
     print(f"\n# wall time {time.perf_counter() - start:.1f} s")
 

@@ -42,6 +42,12 @@ SAME_RTOL = 1e-3
 #: Two switches closer than this (relative to ``T``) where a Newton run
 #: failed are taken as a spurious pair merging.
 MERGE_RTOL = 1e-3
+#: Two neighbouring switches of a converged Newton run closer than this (relative to ``T``) are one
+#: point: a pulse of zero width (to rounding), dropped before the candidate is certified.  A run that
+#: converged with a pair collapsed onto a switch (gaps of 1e-16 T: the 3-mode 1 s move of
+#: ``bench/planner_latency.py``) otherwise cost a failed certificate, whose zeros then gave the same
+#: structure without the pair.
+COINCIDENT_RTOL = 1e-12
 #: Sampling density of the structure guess (times the planners' grid).
 GRID_DENSITY = 4.0
 #: Guess on :func:`~.switching.root_grid` (graded by the modes still ringing; False: the uniform grid).
@@ -122,6 +128,7 @@ def newton_from_guess(
         if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
             return None
         if ok:
+            tau = drop_coincident(tau, T_r)
             signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
             accepted, zeros, zsign0 = check(nuh_r, T_r, tau, signs)
             if accepted is not None:
@@ -207,6 +214,21 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
 def _same_structure(a: np.ndarray, sa: float, b: np.ndarray, sb: float, T: float) -> bool:
     """Whether two switch structures are the same one (see :data:`SAME_RTOL`)."""
     return sa == sb and a.size == b.size and bool(np.all(np.abs(a - b) <= SAME_RTOL * T))
+
+
+def drop_coincident(tau: np.ndarray, T: float) -> np.ndarray:
+    """Switch times-to-go ``tau`` (s, ascending) without the pairs of neighbours within ``COINCIDENT_RTOL T``.
+
+    Such a pair bounds an interval of zero width (to rounding): without it the
+    input is the same, and the signs outside the pair are unchanged.
+    """
+    while tau.size >= 2:
+        gaps = np.diff(tau)
+        k = int(np.argmin(gaps))
+        if not gaps[k] <= COINCIDENT_RTOL * T:
+            break
+        tau = np.delete(tau, [k, k + 1])
+    return tau
 
 
 def _drop_merged(tau: np.ndarray, sign0: float, T: float) -> tuple[np.ndarray, float] | None:

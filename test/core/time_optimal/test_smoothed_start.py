@@ -51,10 +51,16 @@ CASES = {
 }  # fmt: skip
 
 
+def _problem(case):
+    """The move of a fuzz case ``(model, u_max, x0, target)``."""
+    model, u_max, x0, target = case
+    return state_to_rest(model, u_max, np.asarray(x0), target)
+
+
 @pytest.mark.parametrize("index", sorted(CASES))
 def test_every_level_of_the_smoothed_warm_start_converges(monkeypatch, index):
-    model, u_max, x0, target = CASES[index]
-    problem = state_to_rest(model, u_max, np.asarray(x0), target)
+    problem = _problem(CASES[index])
+    model, u_max = problem.model, problem.u_max
     move = prepare(problem)
     rigid = rigid_profile(model, u_max, move.x0, problem.include_position)
     T_init = rigid.duration + 0.5 * math.pi / min(model.omega)
@@ -74,14 +80,6 @@ def test_every_level_of_the_smoothed_warm_start_converges(monkeypatch, index):
         # c32a8c3: 12 of 12 steps at both levels, m = 1.78 / 1.23 (247), 1.82 / 1.15 (71) at the last
         assert len(ms) < costate_solver.SMOOTH_OUTER, (level, ms)
         assert abs(math.log(ms[-1])) < 1e-3, (level, ms)
-
-
-@pytest.mark.parametrize("index", sorted(CASES))
-def test_the_moves_plan_certified(index):
-    model, u_max, x0, target = CASES[index]
-    problem = state_to_rest(model, u_max, np.asarray(x0), target)
-    profile = plan_time_optimal(problem)
-    assert_certified_exact(problem, profile)
 
 
 #: bench/fuzz.py, seed 15, cases 2109 (8 modes at rest: refused on c32a8c3, "missed the target 4.4e-02")
@@ -114,9 +112,11 @@ HARD = {
 }  # fmt: skip
 
 
-@pytest.mark.parametrize("index", sorted(HARD))
-def test_many_mode_moves_at_rest_plan_certified(index):
-    model, u_max, x0, target = HARD[index]
-    problem = state_to_rest(model, u_max, np.asarray(x0), target)
-    profile = plan_time_optimal(problem)
-    assert_certified_exact(problem, profile)
+@pytest.mark.parametrize(
+    "case",
+    [*(CASES[i] for i in sorted(CASES)), *(HARD[i] for i in sorted(HARD))],
+    ids=[*(f"moving-{i}" for i in sorted(CASES)), *(f"at-rest-{i}" for i in sorted(HARD))],
+)
+def test_the_moves_plan_certified(case):
+    problem = _problem(case)
+    assert_certified_exact(problem, plan_time_optimal(problem))
