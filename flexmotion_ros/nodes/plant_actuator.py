@@ -36,6 +36,7 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 from ..core.errors import ConfigError, FlexmotionError
 from ..core.interfaces.command import CommandInterface, check_acceleration_model, command_interface
 from ..execution.actuator import Actuator, TrajectoryPlayback, disturbance_settings, servo_settings
+from ..execution.jtc import started
 from ..execution.trajectory import NS
 from .plant_measurements import stamp_from_ns
 from .trajectory_messages import trajectory_from_msg
@@ -74,6 +75,10 @@ class ActuatorGlue:
         self._playback: TrajectoryPlayback | None = None
         self._pending: list[tuple[Any, int]] = []
         self.trajectory_errors = 0
+        # real time: trajectories whose first point was already past when DDS delivered them (the start is
+        # played late, as a joint trajectory controller would: the transport ate the planner's start delay)
+        self.trajectories_late = 0
+        self.trajectory_late_max_ms = 0.0
         if iface is CommandInterface.EFFORT and not dist.active and not self._plays_trajectories:
             return  # the plain plant (its own exact integration, Coulomb friction)
         if cfg.coulomb_force > 0.0:
@@ -186,12 +191,27 @@ class ActuatorGlue:
         pb, act = self._playback, self._actuator
         pending, self._pending = self._pending, []
         for traj, received in pending:
+            self._note_late_start(traj, received)
             pb.install(traj, max(received, act.t_ns))
             self.applied += 1
             self.max_lag = max(self.max_lag, (now_ns - received) / NS)
         pb.play_to(now_ns)
         self.x = self.x_event = act.x
         self.u = act.applied
+
+    def _note_late_start(self, traj, received_ns: int) -> None:
+        """Count (and warn of) a trajectory delivered after its first point: its start cannot be played on time."""
+        if not traj.points:
+            return
+        late_ns = received_ns - int(started(traj, received_ns).point_times_ns()[0])
+        if late_ns <= 0:
+            return
+        self.trajectories_late += 1
+        self.trajectory_late_max_ms = max(self.trajectory_late_max_ms, late_ns / 1e6)
+        self.get_logger().warning(
+            f"trajectory arrived {late_ns / 1e6:.1f} ms after its first point: its start plays late "
+            "(raise the planner's trajectory.start_delay_s above the transport's delay)"
+        )
 
     def _actuated_state(self) -> np.ndarray:
         """The state now (real-time trajectories: integrated to now), else after the last sample."""
@@ -212,6 +232,8 @@ class ActuatorGlue:
             out["trajectories_received"] = self._playback.received
             out["trajectory_rewinds"] = self._playback.rewinds
             out["trajectories_refused"] = self.trajectory_errors
+            out["trajectories_late"] = self.trajectories_late
+            out["trajectory_late_max_ms"] = self.trajectory_late_max_ms
         return out
 
 

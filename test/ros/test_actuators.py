@@ -13,8 +13,10 @@ import time
 
 import numpy as np
 import pytest
+from rclpy.duration import Duration
+from rclpy.time import Time
 from std_msgs.msg import Float64
-from trajectory_msgs.msg import JointTrajectory
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from flexmotion_ros.core.simulation.exact import modal_amplitudes
 from flexmotion_ros.nodes.planner_node import PlannerNode
@@ -112,7 +114,9 @@ def test_real_time_trajectory_is_exact_beside_cpu_burners_where_the_stream_is_no
     """
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
-        planner = ros.planner(**WB, output="trajectory", **{"trajectory.start_delay_s": 0.2})
+        # 1 s of lead: at load 24 with the burners, 0.2 s was once not enough for the trajectory to arrive
+        # before its start (residual 1.5e-3); a late start is counted by the plant and asserted below
+        planner = ros.planner(**WB, output="trajectory", **{"trajectory.start_delay_s": 1.0})
         plant = ros.plant(**WB, lockstep=False, publish_rate_hz=100.0, **{"plant.input": "trajectory"})
         wait_for(lambda: planner.commands_publisher.get_subscription_count() >= 1, 10.0, "the plant's subscription")
         wait_for(lambda: ros.probe.goal_pub.get_subscription_count() >= 1, 10.0, "goal topic")
@@ -149,7 +153,25 @@ def test_real_time_trajectory_is_exact_beside_cpu_burners_where_the_stream_is_no
             b.kill()
             b.wait()
     print(f"\nreal time beside 2 CPU burners: residual / move  trajectory {traj:.1e}   stream {stream:.1e}")
+    assert plant.trajectories_late == 0, f"the trajectory arrived {plant.trajectory_late_max_ms:.1f} ms late"
     assert traj < 1e-6, x_traj
+
+
+def test_real_time_plant_counts_a_trajectory_that_arrives_after_its_start(ros):
+    """A trajectory stamped 1 s in the past cannot start on time: the plant says so (count, max lateness)."""
+    plant = ros.plant(**WB, lockstep=False, publish_rate_hz=100.0, **{"plant.input": "trajectory"})
+    pub = ros.probe.create_publisher(JointTrajectory, NAMESPACE + "/joint_trajectory", TRAJECTORY_QOS)
+    wait_for(lambda: pub.get_subscription_count() >= 1, 10.0, "the plant's trajectory subscription")
+    msg = JointTrajectory(joint_names=["rigid_body"])
+    msg.header.stamp = Time(nanoseconds=time.time_ns() - 1_000_000_000).to_msg()
+    msg.points = [
+        JointTrajectoryPoint(effort=[0.0], time_from_start=Duration(nanoseconds=1_000_000).to_msg()),
+        JointTrajectoryPoint(effort=[0.0], time_from_start=Duration(nanoseconds=2_000_000).to_msg()),
+    ]
+    pub.publish(msg)
+    wait_for(lambda: plant.trajectories_late >= 1, 10.0, "the late start counted")
+    assert plant.trajectories_late == 1 and 900.0 <= plant.trajectory_late_max_ms <= 10_000.0
+    assert plant.trajectory_errors == 0  # played (late), not refused
 
 
 def test_trajectory_output_ends_a_deactivation_with_a_hold_trajectory(ros):
