@@ -153,13 +153,13 @@ def min_fuel_lp(
     K: int,
     dt: float,
     nu_guess: np.ndarray | None = None,
-    max_free: int = MAX_FREE_SAMPLES,
+    max_free: int | None = None,
 ) -> _LPResult | None:
     """Exact minimum-fuel ZOH sequence with ``K`` samples (samples-to-go order), None if infeasible.
 
     With ``nu_guess`` only windows around its level changes are free; the
     window solution is accepted when its full-problem duality gap closes.
-    At most ``max_free`` samples are free in one LP (a work bound): past it,
+    At most ``max_free`` (default :data:`MAX_FREE_SAMPLES`) samples are free in one LP (a work bound): past it,
     a blocked LP (:data:`BLOCKED_SAMPLES` runs of equal commands, feasible at
     the full rate) and windows around its dual's level changes; the best
     feasible sequence is returned with the best proved lower bound
@@ -170,6 +170,7 @@ def min_fuel_lp(
     SolverError
         More than ``max_free`` samples and neither the blocked LP nor a window feasible.
     """
+    max_free = MAX_FREE_SAMPLES if max_free is None else int(max_free)
     G = sample_vectors(system, K, dt)
     w = -system.expm_x(K * dt, x0)
     # LP units: the move's error scale (uniform and geometric instants).  The 33 uniform
