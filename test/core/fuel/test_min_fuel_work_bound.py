@@ -151,3 +151,33 @@ def test_min_fuel_past_the_work_bound_plans_and_says_it_is_not_proved(monkeypatc
     assert np.max(np.abs(u)) <= CASE_363.u_max
     err = np.abs(_final_error(CASE_363, u, result.sampled.dt))
     assert np.max(err[:2]) <= 1e-9 * abs(CASE_363.target) and np.max(err[2:]) <= 1e-9
+
+
+# fuzz case 577: a damped rigid body moving at the start, a 55 rad/s mode, a 605 s move (60,463 samples)
+CASE_577 = MoveProblem(
+    ModalModel(
+        b0=0.13866879849571917,
+        c=-0.7463476176120513,
+        omega=(0.4572367048841147, 5.1262480211833, 55.003919473933834),
+        zeta=(0.11707610190294038, 0.16150283179729, 0.043676472537085786),
+        b=(-1.8565537516934325, 1.0497777831218185, 0.2024843288590551),
+    ),
+    1.28328982297138,
+    [0.0, -91.18759884359766, -1441.9441019067365, -386.9194554734878]
+    + [-1.0361470487664985, 37.800604191644055, -0.022941309362976087, -0.8807320562869948],
+    -241.1555875353133,
+)
+
+
+def test_a_long_move_past_the_work_bound_plans_from_the_blocked_lp():
+    """Case 577: the blocked LP with block-sized costs got no verdict from HiGHS ("Not Set"): refused."""
+    move = prepare(CASE_577)
+    T = 1.2 * plan_time_optimal(move).duration
+    K, dt = math.ceil(T * 100.0 * (1.0 - 1e-12)), 0.01
+    assert K > lp_module.MAX_FREE_SAMPLES
+    sol = lp_module.min_fuel_lp(move.response, move.x0, CASE_577.u_max, K, dt)
+    assert np.max(np.abs(sol.u)) <= CASE_577.u_max
+    assert sol.bound <= sol.fuel
+    err = np.abs(_final_error(CASE_577, sol.u[::-1], dt))
+    scale = max(abs(CASE_577.target), float(np.max(np.abs(CASE_577.x0))))  # 1,442: the start's largest state
+    assert np.max(err) <= 1e-9 * scale
