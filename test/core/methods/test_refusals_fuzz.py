@@ -150,5 +150,7 @@ def test_robust_sampled_only_search_is_bounded(monkeypatch):
     monkeypatch.setattr(robust_method, "plan_robust_time_optimal", miss)
     monkeypatch.setattr(sampled_robust, "MAX_BRACKET_SAMPLES", 100)  # BEAM needs 296 samples at 100 Hz
     config = PlannerConfig(model=BEAM.model, u_max=BEAM.u_max, method="robust_time_optimal", options={})
-    with pytest.raises(SolverError, match=r"lasts at least .* samples at 100 Hz, .*\(100 samples\) the sampled robust planner"):
+    with pytest.raises(
+        SolverError, match=r"lasts at least .* samples at 100 Hz, .*\(100 samples\) the sampled robust planner"
+    ):
         plan_move(config, BEAM, RATE)
