@@ -138,9 +138,10 @@ def too_long_without_continuous(omega, lower_duration: float, rate_hz: float) ->
     return (
         f"robust time-optimal: the move lasts at least {lower_duration:.4g} s (its time-optimal lower bound), "
         f"{math.ceil(lower_duration * rate_hz)} samples at {rate_hz:g} Hz, and spans "
-        f"{lower_duration * wmax / math.pi:.3g} half periods of the fastest mode ({wmax:.3g} rad/s): past the "
-        f"continuous robust solver's work budget, and longer than the {MAX_BRACKET_SAMPLES / rate_hz:.4g} s "
-        f"({MAX_BRACKET_SAMPLES} samples) the sampled robust planner searches without it; nothing is returned "
+        f"{lower_duration * wmax / math.pi:.3g} half periods of the fastest mode ({wmax:.3g} rad/s): the "
+        f"continuous robust solver found no move over that span, and it is longer than the "
+        f"{MAX_BRACKET_SAMPLES / rate_hz:.4g} s ({MAX_BRACKET_SAMPLES} samples) the sampled robust planner "
+        "searches without it; nothing is returned "
         "(shorten the move, or plan it time_optimal or shaped)"
     )
 
