@@ -38,65 +38,11 @@ from ..model.boundary import MoveProblem
 from ..results import BangBangProfile
 from ..simulation.error_scale import state_scale
 from ..simulation.exact import PiecewiseConstant, simulate
-from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
-from ..time_optimal.switching import isolate_roots
 from ..tolerances import FINAL_STATE_RTOL, T_STAR_RTOL
+from .dual import MAX_DUAL_EVALUATIONS, DualEval, dual_eval, dual_evaluation_budget
 from .lp import check_move_time, min_fuel_lp
-
-
-# ------------------------------------------------------- continuous (Newton)
-class _Offset:
-    """``S(tau) - offset`` for :func:`isolate_roots` (crossings of ``S = offset``)."""
-
-    def __init__(self, system: ModalResponse, offset: float) -> None:
-        self.sys = system
-        self.offset = offset
-        self.wd = system.wd
-
-    def switching(self, nu, tau, derivative=False, order=None):
-        out = self.sys.switching(nu, tau, derivative=derivative, order=order)
-        if isinstance(out, tuple):
-            return (out[0] - self.offset,) + tuple(out[1:])
-        return out - self.offset
-
-    def switching_derivative_bound(self, nu, order):
-        return self.sys.switching_derivative_bound(nu, order)
-
-    def switching_magnitude(self, nu, tau_max):
-        m0, m1 = self.sys.switching_magnitude(nu, tau_max)
-        return m0 + abs(self.offset), m1
-
-
-@dataclass
-class _DualEval:
-    breaks: np.ndarray  # time-to-go breakpoints 0 .. T
-    levels: np.ndarray  # -1/0/+1 on each tau-interval
-    crossings: np.ndarray
-    value: float
-    grad: np.ndarray  # w - reached (unscaled)
-    fuel: float
-    unproved: int
-
-
-def _dual_eval(system: ModalResponse, nu: np.ndarray, w: np.ndarray, T: float, um: float) -> _DualEval:
-    up = isolate_roots(_Offset(system, 1.0), nu, T)
-    dn = isolate_roots(_Offset(system, -1.0), nu, T)
-    cross = np.unique(np.concatenate([up.roots, dn.roots]))
-    cross = cross[(cross > 0.0) & (cross < T)]
-    breaks = np.concatenate([[0.0], cross, [T]])
-    mids = 0.5 * (breaks[:-1] + breaks[1:])
-    S = system.switching(nu, mids)
-    levels = np.where(S > 1.0, 1.0, np.where(S < -1.0, -1.0, 0.0))
-    Gam = system.input_integral(breaks)
-    dG = Gam[1:] - Gam[:-1]
-    reached = um * (levels @ dG)
-    on = levels != 0.0
-    fuel = um * float(np.sum(np.diff(breaks)[on]))
-    # d = nu^T w - u_max sum_on (sgn nu^T dGamma - length) = nu^T (w - reached) + fuel
-    value = float(nu @ (w - reached)) + fuel
-    return _DualEval(breaks, levels, cross, value, w - reached, fuel, up.unproved + dn.unproved)
 
 
 @dataclass
@@ -256,19 +202,27 @@ def plan_min_fuel(
     if not np.any(x0) or T <= time_optimal.duration * (1.0 + T_STAR_RTOL):
         return _time_optimal_as_fuel(problem, time_optimal, t0)
     system = move.response
+    budget = [dual_evaluation_budget(system, T)]  # shared by every start (each also at most MAX_DUAL_EVALUATIONS)
     if nu0 is not None:
         try:
-            return _newton(problem, system, x0, T, np.asarray(nu0, float), max_iter, t0)
+            return _newton(problem, system, x0, T, np.asarray(nu0, float), max_iter, t0, budget)
         except SolverError:
             pass  # a start from another move time can land on the wrong structure: start afresh
-    error: SolverError | None = None
+    error: BangOffBangMissed | None = None
     for nu in _initial_costates(problem, system, x0, T, time_optimal):
+        if budget[0] <= 0:
+            break
         try:
-            return _newton(problem, system, x0, T, nu, max_iter, t0)
+            return _newton(problem, system, x0, T, nu, max_iter, t0, budget)
         except BangOffBangMissed as exc:
             if exc.singular:  # the dual's maximum leaves a miss: no start does better
                 raise
-            error = exc  # a start that lands on another structure: the next start
+            # a start that lands on another structure: the next start.  The refusal carries the
+            # start with the highest dual value (the closest to the optimum: the LP's window guess)
+            if error is None or exc.value > error.value:
+                error = exc
+    if error is None:
+        raise BangOffBangMissed("min_fuel: no Newton start within the dual-evaluation budget", np.zeros(x0.size), False)
     raise error
 
 
@@ -281,26 +235,26 @@ class BangOffBangMissed(SolverError):
     (the windowed LP is accepted only when its duality gap over every sample closes).
     """
 
-    def __init__(self, message: str, costate: np.ndarray, singular: bool) -> None:
+    def __init__(self, message: str, costate: np.ndarray, singular: bool, value: float = -math.inf) -> None:
         why = "a singular arc, |B^T lambda| = 1 on an interval" if singular else "Newton's budget ran out"
         super().__init__(f"{message} ({why})")
         self.costate = np.asarray(costate, float)
         self.singular = singular
+        self.value = float(value)  # the dual value d(costate) (N s): higher is nearer the optimum
 
 
-#: Most evaluations of the dual (each isolates the crossings of ``|S| = 1`` over ``[0, T]``) per
-#: Newton start, line searches included: converging starts took 6-25 on the fuzz cases.
-MAX_DUAL_EVALUATIONS = 40
 #: Most halvings of a Newton step.
 MAX_LINE_SEARCH = 30
 
 
-def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
+def _newton(problem, system, x0, T, nu, max_iter, t0, budget: list[int] | None = None) -> FuelProfile:
     """Damped Newton ascent on the concave dual ``d(nu)``; the result is checked by :func:`_assemble`."""
     um = problem.u_max
     w = -system.expm_x(T, x0)
     s = state_scale(system, x0, um, T)  # the move's error scale (see .lp: coarse units missed fast modes)
-    ev = _dual_eval(system, nu, w, T, um)
+    budget = budget if budget is not None else [2 * MAX_DUAL_EVALUATIONS]
+    limit = min(MAX_DUAL_EVALUATIONS, budget[0])  # this start's evaluations
+    ev = dual_eval(system, nu, w, T, um)
     best = (float(np.max(np.abs(ev.grad / s))), nu, ev)
     stalled = 0
     flat = 0  # iterations in a row that raised the dual value by rounding only
@@ -320,7 +274,7 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
         # the dual's maximum reached while the miss stays: no bang-off-bang optimum (a singular
         # arc, |S| = 1 on an interval; fuzz case 191 spent 1,900 evaluations, 57 s, here).
         # The sampled LP is exact there; so is the work bound
-        if (flat >= 4 and stalled >= 4) or evaluations >= MAX_DUAL_EVALUATIONS:
+        if (flat >= 4 and stalled >= 4) or evaluations >= limit:
             break
         Gc = system.expm_B(ev.crossings) / s
         _, dS = system.switching(nu, ev.crossings, derivative=True)
@@ -341,8 +295,10 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
         t = 1.0
         improved = False
         for _ in range(MAX_LINE_SEARCH):
+            if evaluations >= limit:
+                break
             cand = nu + t * step / s
-            ev_c = _dual_eval(system, cand, w, T, um)
+            ev_c = dual_eval(system, cand, w, T, um)
             evaluations += 1
             if ev_c.value >= ev.value + 1e-4 * t * slope or np.max(np.abs(ev_c.grad / s)) < 0.5 * np.max(np.abs(g)):
                 improved = True
@@ -352,15 +308,16 @@ def _newton(problem, system, x0, T, nu, max_iter, t0) -> FuelProfile:
             break
         flat = flat + 1 if ev_c.value - ev.value <= 1e-13 * max(abs(ev.value), 1e-300) else 0
         nu, ev = cand, ev_c
+    budget[0] -= evaluations
     if float(np.max(np.abs(ev.grad / s))) > best[0]:
         _, nu, ev = best
     try:
         return _assemble(problem, system, nu, ev, T, it, t0)
     except SolverError as exc:
-        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4 and stalled >= 4) from None
+        raise BangOffBangMissed(str(exc), nu, singular=flat >= 4 and stalled >= 4, value=ev.value) from None
 
 
-def _assemble(problem, system, nu, ev: _DualEval, T, iterations, t0) -> FuelProfile:
+def _assemble(problem, system, nu, ev: DualEval, T, iterations, t0) -> FuelProfile:
     um = problem.u_max
     # forward time: reverse the tau-intervals; merge neighbours with equal level
     lv = ev.levels[::-1]

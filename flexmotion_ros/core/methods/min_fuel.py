@@ -84,11 +84,18 @@ def plan(config: PlannerConfig, problem: MoveProblem | PreparedMove, rate_hz: fl
         except SolverError as exc:
             curve = sampled_fuel_curve(move, rate, longest, int(points), to).to_dict()
             info["fuel_curve"] = {**curve, "note": f"sampled curve only: {exc}"}
-    cont = (
-        continuous
-        if continuous is not None
-        else SampledInput(sampled, "min_fuel", True, "sampled LP optimum (duality gap closed)")
-    )
+    if continuous is not None:
+        cont = continuous
+    elif sampled.extra.get("fuel_gap_closed", True):
+        cont = SampledInput(sampled, "min_fuel", True, "sampled LP optimum (duality gap closed)")
+    else:  # the LP's work bound: the best window, exact and within the bound, optimality not proved
+        gap = sampled.extra["fuel"] - sampled.extra["fuel_lower_bound"]
+        cont = SampledInput(
+            sampled,
+            "min_fuel",
+            False,
+            f"best window of the sampled fuel LP within its work bound; fuel within {gap:.3g} N s of the optimum",
+        )
     return PlanResult(method="min_fuel", problem=problem, continuous=cont, sampled=sampled, info=info)
 
 

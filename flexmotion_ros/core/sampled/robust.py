@@ -80,7 +80,10 @@ def plan_robust_time_optimal_zoh(
     xa0 = system.augment(move.x0)
     aug = AugmentedSystem(A=system.A(), B=system.B(), x0=xa0)
     if profile is None:
-        K_lo, K_hi, nu = bracket_samples(system, xa0, um, dt, max(1, math.ceil(lower_duration / dt * (1.0 - 1e-12))))
+        K_first = max(1, math.ceil(lower_duration / dt * (1.0 - 1e-12)))
+        if K_first > MAX_BRACKET_SAMPLES:
+            raise SolverError(too_long_without_continuous(problem.model.omega, lower_duration, rate_hz))
+        K_lo, K_hi, nu = bracket_samples(system, xa0, um, dt, K_first)
         T = K_hi * dt
     else:
         T = profile.duration
@@ -119,6 +122,30 @@ def plan_robust_time_optimal_zoh(
     return found
 
 
+def too_long_without_continuous(omega, lower_duration: float, rate_hz: float) -> str:
+    """The refusal of a move too long for the sampled robust planner without a continuous robust move.
+
+    Parameters
+    ----------
+    omega : sequence of float
+        The modes' natural frequencies (rad/s).
+    lower_duration : float
+        A proved lower bound on the move's duration (s), e.g. the nominal ``T*``.
+    rate_hz : float
+        Command rate (Hz).
+    """
+    wmax = float(np.max(omega)) if len(omega) else 0.0
+    return (
+        f"robust time-optimal: the move lasts at least {lower_duration:.4g} s (its time-optimal lower bound), "
+        f"{math.ceil(lower_duration * rate_hz)} samples at {rate_hz:g} Hz, and spans "
+        f"{lower_duration * wmax / math.pi:.3g} half periods of the fastest mode ({wmax:.3g} rad/s): the "
+        f"continuous robust solver found no move over that span, and it is longer than the "
+        f"{MAX_BRACKET_SAMPLES / rate_hz:.4g} s ({MAX_BRACKET_SAMPLES} samples) the sampled robust planner "
+        "searches without it; nothing is returned "
+        "(shorten the move, or plan it time_optimal or shaped)"
+    )
+
+
 def bracket_samples(
     system: RobustModalResponse, xa0: np.ndarray, u_max: float, dt: float, K_lo: int
 ) -> tuple[int, int, np.ndarray | None]:
@@ -150,10 +177,10 @@ def bracket_samples(
         nonlocal proved, G_all, scale, K_built
         if K > MAX_BRACKET_SAMPLES:
             raise SolverError(
-                f"robust time-optimal: the continuous robust solver found no move, and the sampled one needs "
-                f"{'at least' if K == K_lo else 'more than'} {K if K == K_lo else K - 1} samples at "
-                f"{1.0 / dt:g} Hz: longer than the {MAX_BRACKET_SAMPLES} samples searched without it; "
-                "nothing is returned"
+                f"robust time-optimal: no sampled sequence of {lo} samples or fewer ({lo * dt:.4g} s at "
+                f"{1.0 / dt:g} Hz) keeps the robust constraints within the bound (least-peak LPs), and the "
+                f"continuous robust solver found no move: longer moves are past the {MAX_BRACKET_SAMPLES} "
+                "samples the sampled robust planner searches without it; nothing is returned"
             )
         if K > K_built:  # units and sample vectors at the largest count yet (sliced below it)
             K_built = 2 * K

@@ -85,13 +85,13 @@ def test_newton_without_a_bang_off_bang_optimum_stops_early(monkeypatch):
     Before: 1,891 dual evaluations (57 s) before the same refusal; the sampled LP plans the move.
     """
     calls = []
-    original = fuel_module._dual_eval
+    original = fuel_module.dual_eval
 
     def counted(*args):
         calls.append(1)
         return original(*args)
 
-    monkeypatch.setattr(fuel_module, "_dual_eval", counted)
+    monkeypatch.setattr(fuel_module, "dual_eval", counted)
     move = prepare(CASE_191)
     to = plan_time_optimal(move)
     with pytest.raises(SolverError, match="misses the target") as info:
