@@ -5,7 +5,8 @@ A plan made during a move starts at the splice sample ``k_next + lead``
 next plan's time is a high quantile of the recent ones (outliers set aside),
 scaled and capped (:func:`lead_samples`); a plan that overran its look-ahead
 is planned again with it doubled (:func:`longer_lead`).  The ready stops
-(:mod:`.ready_stops`) space their checkpoints by the same estimate.
+(:mod:`.ready_stops`) use the same window, default and factor for their own
+planning times.
 """
 
 from __future__ import annotations
