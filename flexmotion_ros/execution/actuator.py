@@ -10,7 +10,8 @@ for a velocity / position joint: ideal tracking or a first-order servo of
 every instant where something changes -- the setpoint's due time (the servo
 arrives there, then holds), the disturbance (:class:`Disturbance`: a force
 impulse or step on the rigid body's input at ``time_s`` after the first
-command).
+command).  The disturbance and the servo from the plant's parameters are
+:mod:`.actuator_settings`.
 
 :class:`TrajectoryPlayback` is the receiving end of ``output: trajectory``:
 it plays joint trajectories with the joint trajectory controller's rule
@@ -27,12 +28,9 @@ is played at once to its end; one that starts earlier than the plant's time
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from enum import Enum
-from typing import Any
 
 import numpy as np
 
@@ -40,78 +38,11 @@ from ..core.errors import ConfigError
 from ..core.interfaces.command import CommandInterface, command_interface
 from ..core.interfaces.servo import Servo, ServoState, servo_advance, servo_setpoint, servo_start
 from ..core.model.modal_model import ModalModel
+
+# The settings, exported from here too (the plant node imports them so).
+from .actuator_settings import Disturbance, DisturbanceKind, disturbance_settings, servo_settings
 from .jtc import held_pieces, started
 from .trajectory import NS, JointTrajectory, ReceiverSettings, TrajectoryPoint
-
-
-class DisturbanceKind(Enum):
-    """``plant.disturbance.type`` (values: the parameter's strings)."""
-
-    NONE = "none"
-    IMPULSE = "impulse"  # value: N s, at time_s
-    STEP = "step"  # value: N, from time_s on
-
-
-@dataclass(frozen=True, kw_only=True)
-class Disturbance:
-    """A force on the rigid body's input channel (the model's ``B``: it excites the modes as the actuator does).
-
-    Attributes
-    ----------
-    kind : DisturbanceKind
-    time_s : float
-        When (s, from the first non-zero command: the first move's start).
-    value : float
-        Impulse (N s) or step (N).
-    """
-
-    kind: DisturbanceKind = DisturbanceKind.NONE
-    time_s: float = 0.0
-    value: float = 0.0
-
-    @property
-    def active(self) -> bool:
-        """Something happens."""
-        return self.kind is not DisturbanceKind.NONE and self.value != 0.0
-
-
-def disturbance_settings(values: Mapping[str, Any], interface: CommandInterface | str) -> Disturbance:
-    """Validate ``plant.disturbance.*``.
-
-    Raises
-    ------
-    ConfigError
-        A bad type, a negative or non-finite time, a non-finite value, or a
-        disturbance on a velocity / position joint (its model's input is the
-        servo's acceleration, it has no force input).
-    """
-    interface = command_interface(interface)
-    names = [k.value for k in DisturbanceKind]
-    kind = values.get("plant.disturbance.type", "none")
-    if kind not in names:
-        raise ConfigError("plant.disturbance.type", f"must be one of {names}, got {kind!r}")
-    kind = DisturbanceKind(kind)
-    t = float(values.get("plant.disturbance.time_s", 0.0))
-    if not (math.isfinite(t) and t >= 0.0):
-        raise ConfigError("plant.disturbance.time_s", f"must be finite and >= 0 s, got {t}")
-    v = float(values.get("plant.disturbance.value", 0.0))
-    if not math.isfinite(v):
-        raise ConfigError("plant.disturbance.value", f"must be finite (N s or N), got {v}")
-    if kind is not DisturbanceKind.NONE and interface is not CommandInterface.EFFORT:
-        raise ConfigError(
-            "plant.disturbance.type",
-            f"a force disturbance needs command_interface effort, got {interface.value} "
-            "(a servo-driven joint's model has the servo's acceleration as its input, no force)",
-        )
-    return Disturbance(kind=kind, time_s=t, value=v)
-
-
-def servo_settings(values: Mapping[str, Any]) -> Servo:
-    """``plant.servo_bandwidth`` (rad/s; 0: ideal tracking)."""
-    w = float(values.get("plant.servo_bandwidth", 0.0))
-    if not (math.isfinite(w) and w >= 0.0):
-        raise ConfigError("plant.servo_bandwidth", f"must be finite and >= 0 rad/s (0: ideal), got {w}")
-    return Servo(bandwidth=w if w > 0.0 else None)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -14,11 +14,10 @@ from flexmotion_ros.core.errors import ConfigError
 from flexmotion_ros.core.interfaces.servo import Servo, simulate_servo
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import PiecewiseConstant, final_state
-from flexmotion_ros.execution.actuator import (
-    Actuator,
+from flexmotion_ros.execution.actuator import Actuator, TrajectoryPlayback
+from flexmotion_ros.execution.actuator_settings import (
     Disturbance,
     DisturbanceKind,
-    TrajectoryPlayback,
     disturbance_settings,
     servo_settings,
 )

@@ -14,7 +14,7 @@ from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.execution import HOLD, CommandStream, Segment, lead_samples, splice_point
-from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, StopPreparer, ready_stop_usable
+from flexmotion_ros.execution.ready_stops import STOP_MARGIN_SAMPLES, StopPreparer, ready_stop_usable
 from flexmotion_ros.execution.stream_halt import HaltCause, StreamStopped
 
 RATE = 100.0

@@ -18,7 +18,8 @@ from flexmotion_ros.core.model.boundary import state_to_rest
 from flexmotion_ros.core.model.modal_model import ModalModel
 from flexmotion_ros.core.simulation.exact import modal_amplitudes
 from flexmotion_ros.execution.actuator import Actuator, TrajectoryPlayback
-from flexmotion_ros.execution.output import OutputStream, SetpointEncoder, output_settings
+from flexmotion_ros.execution.output import OutputStream, SetpointEncoder
+from flexmotion_ros.execution.output_config import output_settings
 from flexmotion_ros.execution.timeline import Segment, predicted_state
 from flexmotion_ros.execution.trajectory import NS
 

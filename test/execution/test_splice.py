@@ -27,7 +27,8 @@ from flexmotion_ros.execution import (
     predicted_state,
     splice_point,
 )
-from flexmotion_ros.execution.splice import MAX_LEAD_S, STOP_PREP_DUTY, StopPreparer
+from flexmotion_ros.execution.lookahead import MAX_LEAD_S
+from flexmotion_ros.execution.ready_stops import STOP_PREP_DUTY, StopPreparer
 
 #: Wie-Bernstein at 20 Hz: a 1.0 move is 85 samples, planned in ~30 ms.
 WB = ModalModel(b0=0.5, omega=[math.sqrt(2.0)], zeta=[0.0], b=[1.0])

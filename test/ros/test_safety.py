@@ -24,7 +24,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from flexmotion_ros.execution import lead_samples
-from flexmotion_ros.execution.splice import STOP_MARGIN_SAMPLES, STOP_PREP_DUTY
+from flexmotion_ros.execution.ready_stops import STOP_MARGIN_SAMPLES, STOP_PREP_DUTY
 from flexmotion_ros.nodes.planner_node import PlannerNode
 
 from .conftest import FAST, NAMESPACE, goal_request, overrides, wait_for

@@ -25,7 +25,8 @@ the sign of the continuous switching function, so the LP is solved with only
 windows around the switches free, and the window solution is accepted only
 if its dual certifies it for the full problem (signs agree on every fixed
 sample); otherwise the windows grow.  The solution is then corrected to an
-exact final state and checked by matrix-exponential simulation.
+exact final state and checked by matrix-exponential simulation.  The LP and
+its bound are :mod:`.peak_lp`; this module searches the count.
 """
 
 from __future__ import annotations
@@ -35,17 +36,13 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from scipy import sparse
 
 from ..errors import GoalError, SolverError
-from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
 from ..simulation.exact import simulate_samples
-from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
-from ..simulation.sample_grid import expm_x_grid
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import BOUND_RTOL, LP_RTOL
 from .check import verified_samples
@@ -54,125 +51,17 @@ from .correction import (
     exact_candidates,
     lands_exactly,
 )
-from .lp_tools import sample_vectors
+from .peak_lp import (  # dual_bound, solve_peak_lp, window_mask: also imported from here by the other sampled planners
+    dual_bound,
+    grid_sample_vectors,
+    solve_peak_lp,
+    window_mask,
+)
 from .switch_samples import switch_sample_sequence
 
 MAX_EXTRA_SAMPLES = 200
 #: Try :func:`.switch_samples.switch_sample_sequence` before the LP at every count (False: the LP alone, as before).
 SWITCH_SAMPLES = True
-
-
-def grid_sample_vectors(system, K: int, dt: float) -> np.ndarray:
-    """:func:`~.lp_tools.sample_vectors` by complex power products on the grid for a :class:`ModalResponse`.
-
-    The same vectors to a few ulp of each column's size (tested against
-    ``sample_vectors``), 2.5-3x faster at ``K = 5000``
-    (:func:`~flexmotion_ros.core.simulation.sample_grid.expm_x_grid`); any
-    other system (the robust augmented one) through its own ``expm_x_many``.
-    """
-    if not isinstance(system, ModalResponse):
-        return sample_vectors(system, K, dt)
-    gam = system.input_integral(np.array([dt]))[0]
-    return expm_x_grid(system, dt, K, gam)
-
-
-def window_mask(S: np.ndarray, width: int) -> np.ndarray:
-    """Samples within ``width`` of a sign change of ``S`` (and the first/last ``width``)."""
-    K = S.size
-    free = np.zeros(K, dtype=bool)
-    change = np.flatnonzero(np.sign(S[1:]) != np.sign(S[:-1]))
-    for c in change:
-        free[max(0, c - width + 1) : min(K, c + width + 1)] = True
-    free[:width] = True  # the first samples before arrival absorb the end effects
-    free[K - width :] = True
-    return free
-
-
-def solve_peak_lp(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
-    """``min t`` with samples outside ``free`` fixed at ``signs * t``.  Returns ``(u, t, nu)`` or None.
-
-    Solved in the scaled form ``u = v / s``: ``max s  s.t.  G_F^T v_F - s w =
-    -sum_fixed signs_m g_m,  |v_F| <= 1,  s >= 0``, so ``t* = 1 / s*``.  The
-    peak bounds are plain variable bounds (no ``2 |F|`` inequality rows), which
-    makes a full-horizon LP ~10x cheaper.  The equality multipliers ``y`` of this
-    form are ``nu / t*`` (``nu``: those of the ``min t`` form, ``y^T w = s*``),
-    so ``nu = t* y``.  ``s* = 0`` (no finite peak reaches ``w``) and an
-    infeasible LP both return None, as the ``min t`` form's infeasibility would;
-    ``w = 0`` (``t* = 0``, nothing to scale) uses the ``min t`` form itself.
-    """
-    if not np.any(w):  # t* = 0: the scaled form has no s to maximise
-        return _solve_peak_lp_rows(G, w, signs, free)
-    F = np.flatnonzero(free)
-    nF = F.size
-    c_fix = np.where(free, 0.0, signs) @ G  # one product, no K x n copy of the fixed rows
-    A_eq = np.column_stack([G[F].T, -w])
-    b_eq = -c_fix
-    # equilibrate the rows (one per state): HiGHS's feasibility tolerance is
-    # absolute, and a row of 1e-12 (u_max 1e12: every sample moves a state by
-    # far more than the move) would be met by any point.  Row scaling leaves
-    # the solution unchanged; the multipliers scale back below.
-    rows = np.maximum(np.max(np.abs(A_eq), axis=1), np.abs(b_eq))
-    rows = np.where(rows > 0.0, rows, 1.0)
-    A_eq = A_eq / rows[:, None]  # dense: the backend builds its compressed columns without scipy.sparse
-    b_eq = b_eq / rows
-    cost = np.zeros(nF + 1)
-    cost[-1] = -1.0
-    lower = np.full(nF + 1, -1.0)
-    upper = np.ones(nF + 1)
-    lower[nF] = 0.0
-    upper[nF] = np.inf
-    # n dense rows and box bounds: HiGHS's presolve finds nothing to remove and
-    # costs ~30 % of the solve; it runs only if the dual simplex alone reports
-    # a numerical difficulty
-    lp = dict(cost=cost, A_eq=A_eq, b_eq=b_eq, lower=lower, upper=upper)
-    res = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, presolve=False)
-    if res.status is LpStatus.OTHER:
-        res = solve_lp(**lp)
-    if res.status is LpStatus.UNBOUNDED:  # unbounded s (t* = 0 numerically): the min-t form decides
-        return _solve_peak_lp_rows(G, w, signs, free)
-    if res.status is not LpStatus.OPTIMAL:
-        return None
-    s_star = float(res.x[-1])
-    if not s_star > 0.0:
-        return None
-    t = 1.0 / s_star
-    u = signs * t
-    u[F] = res.x[:nF] * t
-    return u, t, t * res.eq_marginals / rows
-
-
-def _solve_peak_lp_rows(G: np.ndarray, w: np.ndarray, signs: np.ndarray, free: np.ndarray):
-    """:func:`solve_peak_lp` in the direct ``min t`` form with ``2 |F|`` rows ``|u_f| <= t``.
-
-    Only for ``w = 0`` (``t* = 0``), where the scaled form has nothing to maximise.
-    """
-    F = np.flatnonzero(free)
-    fixed = ~free
-    nF = F.size
-    c_fix = (G[fixed] * signs[fixed, None]).sum(axis=0)
-    A_eq = np.column_stack([G[F].T, c_fix])
-    cost = np.zeros(nF + 1)
-    cost[-1] = 1.0
-    # -t <= u_f <= t, sparse: over a full horizon a dense matrix would be O(K^2)
-    rows = np.concatenate([np.arange(2 * nF), np.arange(2 * nF)])
-    cols = np.concatenate([np.arange(nF), np.arange(nF), np.full(2 * nF, nF)])
-    vals = np.concatenate([np.ones(nF), -np.ones(nF), -np.ones(2 * nF)])
-    A_ub = sparse.csr_matrix((vals, (rows, cols)), shape=(2 * nF, nF + 1))
-    lower = np.full(nF + 1, -np.inf)
-    lower[nF] = 0.0
-    res = solve_lp(cost=cost, A_ub=A_ub, b_ub=np.zeros(2 * nF), A_eq=A_eq, b_eq=w, lower=lower, upper=np.inf)
-    if res.status is not LpStatus.OPTIMAL:
-        return None
-    t = float(res.x[-1])
-    u = signs * t
-    u[F] = res.x[:nF]
-    return u, t, res.eq_marginals
-
-
-def dual_bound(G: np.ndarray, w: np.ndarray, nu: np.ndarray) -> float:
-    """Weak-duality lower bound on the peak command needed (any ``nu``)."""
-    denom = float(np.sum(np.abs(G @ nu)))
-    return float(nu @ w) / denom if denom > 0.0 else -math.inf
 
 
 def plan_time_optimal_zoh(

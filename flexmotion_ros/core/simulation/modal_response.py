@@ -20,37 +20,13 @@ import math
 import numpy as np
 
 from ..model.modal_model import ModalModel
+from . import switching_bounds
+from .phi_functions import phi1, phi2
 
-_SERIES_Z = 0.1  # |c tau| below which phi-functions use their Taylor series
+__all__ = ["COEFFICIENT_MEMO", "ModalResponse", "phi1", "phi2"]
+
 #: Switching-function coefficient sets kept per response (:meth:`ModalResponse._switching_coefficients`).
 COEFFICIENT_MEMO = 8
-
-
-def phi1(z: np.ndarray) -> np.ndarray:
-    """``(e^z - 1) / z`` with the removable singularity at 0 filled in."""
-    z = np.asarray(z, dtype=float)
-    out = np.ones_like(z)
-    big = np.abs(z) >= 1e-12
-    out[big] = np.expm1(z[big]) / z[big]
-    small = ~big
-    out[small] = 1.0 + 0.5 * z[small]
-    return out
-
-
-def phi2(z: np.ndarray) -> np.ndarray:
-    """``(e^z - 1 - z) / z^2`` accurately near 0 (Taylor series below |z| = 0.1)."""
-    z = np.asarray(z, dtype=float)
-    out = np.empty_like(z)
-    big = np.abs(z) >= _SERIES_Z
-    zb = z[big]
-    out[big] = (np.expm1(zb) - zb) / (zb * zb)
-    zs = z[~big]
-    # sum_{k>=0} z^k / (k+2)!, 9 terms: truncation < 0.1^9/11! ~ 3e-17
-    acc = np.zeros_like(zs)
-    for k in range(8, -1, -1):
-        acc = acc * zs + 1.0 / math.factorial(k + 2)
-    out[~big] = acc
-    return out
 
 
 class ModalResponse:
@@ -318,124 +294,38 @@ class ModalResponse:
         memo[key] = coef
         return coef
 
+    # ------------------------------------------- proved bounds on the switching function
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
-        """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]``.
+        """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]`` (its rounding unit).
 
-        Rounding errors in evaluating ``S`` are about ``eps`` times this, which
-        may be far above ``|S|`` when the terms cancel (short moves).
+        :func:`.switching_bounds.switching_magnitude`.
         """
-        nu = np.asarray(nu, dtype=float)
-        nv = abs(nu[self.r - 1])
-        b0 = abs(self.b0)
-        if self.include_position:
-            # the position term nu_p (e^{c tau} - 1) / c grows like tau only for c = 0: with
-            # friction it stays below nu_p / |c| (a bound T |nu_p| hid every zero-free block of a
-            # long move behind a margin a thousand times |S|: 0.4 s of sampling per guess)
-            reach = tau_max if self.c == 0.0 else tau_max * float(phi1(np.array([self.c * tau_max]))[0])
-            m0 = b0 * (abs(nu[0]) * reach + nv)
-            m1 = b0 * (abs(nu[0]) + nv * abs(self.c))
-        else:
-            m0 = b0 * nv
-            m1 = b0 * abs(self.c) * nv
-        if self.w.size:
-            bm = np.abs(self.bm)
-            q = np.abs(nu[self.r :: 2]) * bm / self.wd
-            qd = np.abs(nu[self.r + 1 :: 2]) * bm * (1.0 + self.sig / self.wd)
-            m0 += float(np.sum(q + qd))
-            m1 += float(np.sum((q + qd) * self.w))
-        return m0, m1
+        return switching_bounds.switching_magnitude(self, nu, tau_max)
 
     def switching_derivative_bound(self, nu: np.ndarray, order: int) -> float:
-        """Upper bound on ``|d^order S / dtau^order|`` over ``tau >= 0`` (``order >= 1``)."""
-        nu = np.asarray(nu, dtype=float)
-        c = abs(self.c)
-        nv = abs(nu[self.r - 1])
-        if self.include_position:
-            bound = abs(self.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
-        else:
-            bound = abs(self.b0) * nv * c**order
-        if self.w.size:
-            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
-            amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm)
-            bound += float(np.sum(amp * self.w**order))
-        return bound
+        """Upper bound on ``|d^order S / dtau^order|`` over ``tau >= 0`` (``order >= 1``).
+
+        :func:`.switching_bounds.switching_derivative_bound`.
+        """
+        return switching_bounds.switching_derivative_bound(self, nu, order)
 
     def switching_derivative_bound_from(self, nu: np.ndarray, order: int, tau: np.ndarray) -> np.ndarray:
         """Upper bound on ``|d^order S / dtau^order|`` over ``[tau, inf)``, for each ``tau``.
 
-        Every term of ``S`` decays (``e^{c tau}``, ``e^{-zeta omega tau}``), so
-        its bound at the start of an interval holds on the whole interval;
-        far from ``tau = 0`` on long, damped moves this is much tighter than
-        :meth:`switching_derivative_bound`.
+        :func:`.switching_bounds.switching_derivative_bound_from`.
         """
-        nu = np.asarray(nu, dtype=float)
-        tau = np.asarray(tau, dtype=float)
-        c = abs(self.c)
-        nv = abs(nu[self.r - 1])
-        if self.include_position:
-            rigid = abs(self.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
-        else:
-            rigid = abs(self.b0) * nv * c**order
-        bound = rigid * np.exp(self.c * tau)
-        if self.w.size:
-            a = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
-            amp = np.hypot(a, nu[self.r + 1 :: 2] * self.bm) * self.w**order
-            bound = bound + np.exp(-np.outer(tau, self.sig)) @ amp
-        return bound
+        return switching_bounds.switching_derivative_bound_from(self, nu, order, tau)
 
     def switching_zero_free(self, nu: np.ndarray, a: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
         """Which intervals ``[a, b]`` are proved to hold no zero of ``S`` (bool per interval).
 
-        ``S`` is the rigid part ``R`` (monotone in ``tau``: its derivative
-        ``b0 (nu_p + c nu_v) e^{c tau}`` keeps one sign) plus the modes, each
-        bounded by its amplitude ``|a_i sin + b_i cos| e^{-sigma_i tau} <=
-        amp_i e^{-sigma_i a}`` on ``[a, inf)``.  Where ``R`` keeps one sign and
-        ``min(|R(a)|, |R(b)|)`` exceeds the modes' bound plus ``margin`` (the
-        rounding noise of ``S``), ``S`` cannot vanish, however fast the modes
-        oscillate.  On a long move this proves most of ``[0, T]`` zero-free
-        without sampling the fastest mode there.
+        :func:`.switching_bounds.switching_zero_free`.
         """
-        nu = np.asarray(nu, dtype=float)
-        a = np.asarray(a, dtype=float)
-        b = np.asarray(b, dtype=float)
-
-        def rigid(tau: np.ndarray) -> np.ndarray:
-            ect = np.exp(self.c * tau)
-            if self.include_position:
-                return self.b0 * (nu[0] * tau * phi1(self.c * tau) + nu[1] * ect)
-            return self.b0 * nu[0] * ect
-
-        Ra, Rb = rigid(a), rigid(b)
-        low = np.minimum(np.abs(Ra), np.abs(Rb))
-        if self.w.size:
-            am = nu[self.r :: 2] * self.bm / self.wd - nu[self.r + 1 :: 2] * self.bm * self.sig / self.wd
-            amp = np.hypot(am, nu[self.r + 1 :: 2] * self.bm)
-            modal = np.exp(-np.outer(a, self.sig)) @ amp
-        else:
-            modal = np.zeros(a.shape)
-        return (np.sign(Ra) * np.sign(Rb) > 0) & (low > modal * (1.0 + 1e-12) + margin)
+        return switching_bounds.switching_zero_free(self, nu, a, b, margin)
 
     def switching_derivative_bounds(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Upper bounds on ``|S'|`` and ``|S''|`` over ``[0, tau_max]``.
 
-        Used by the certificate to prove that the switching function has no
-        zeros between sample points (a Lipschitz argument).
+        :func:`.switching_bounds.switching_derivative_bounds`.
         """
-        nu = np.asarray(nu, dtype=float)
-        b0, c = abs(self.b0), self.c
-        nv = abs(nu[self.r - 1])
-        if self.include_position:
-            npos = abs(nu[0])
-            d1 = b0 * (npos + nv * abs(c))
-            d2 = b0 * abs(c) * (npos + nv * abs(c))
-        else:
-            d1 = b0 * abs(c) * nv
-            d2 = b0 * c * c * nv
-        if self.w.size:
-            nq = nu[self.r :: 2] * self.bm
-            nqd = nu[self.r + 1 :: 2] * self.bm
-            a = nq / self.wd - nqd * self.sig / self.wd
-            amp = np.hypot(a, nqd)  # |a sin + b cos| <= amp; damping only shrinks it
-            d1 += float(np.sum(amp * self.w))  # |(sig + i wd)| = omega
-            d2 += float(np.sum(amp * self.w**2))
-        return d1, d2
+        return switching_bounds.switching_derivative_bounds(self, nu, tau_max)

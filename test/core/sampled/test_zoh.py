@@ -29,7 +29,7 @@ from flexmotion_ros.core import (
     plan_time_optimal_zoh,
     rest_to_rest,
 )
-from flexmotion_ros.core.sampled import correction, zoh
+from flexmotion_ros.core.sampled import correction, peak_lp, zoh
 from flexmotion_ros.core.sampled.lp_tools import sample_vectors
 from flexmotion_ros.core.simulation.exact import simulate_samples
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
@@ -152,7 +152,7 @@ def test_scaled_peak_lp_matches_direct_form(seed):
     rng = np.random.default_rng(seed)
     G, w, signs, free = random_window_problem(rng)
     fast = zoh.solve_peak_lp(G, w, signs, free)
-    ref = zoh._solve_peak_lp_rows(G, w, signs, free)
+    ref = peak_lp._solve_peak_lp_rows(G, w, signs, free)
     assert (fast is None) == (ref is None)
     if ref is None:
         return
