@@ -39,7 +39,7 @@ from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..sampled.lp_tools import least_norm_correction
 from ..tolerances import HIGHS_OPTIONS
-from .closed_form import ClosedForm
+from .contact import ClosedForm
 
 #: HiGHS options of every friction LP: tight feasibility, and a time limit (s): the dual simplex can
 #: stall for minutes on a degenerate windowed LP; such an LP counts as "no solution" (wider windows,
