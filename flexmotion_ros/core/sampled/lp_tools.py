@@ -21,6 +21,26 @@ def sample_vectors(system: ModalResponse, K: int, dt: float) -> np.ndarray:
     return system.expm_x_many(dt * np.arange(K), gam)
 
 
+#: Widest ``(n, K)`` system solved by ``np.linalg.lstsq`` (LAPACK ``gelsd``): with 16 rows it
+#: segfaulted between 3 and 4.8 million columns (a 13-hour move at 100 Hz, um_zvd fuzz case 875);
+#: wider ones go through a QR factorisation of the tall transpose, whose workspace stays small.
+LSTSQ_MAX_COLUMNS = 1_000_000
+
+
+def min_norm_solve(M: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The least-squares solution of ``M y = r`` of least norm (``M``: ``(n, K)``, few rows, many columns).
+
+    ``np.linalg.lstsq`` up to :data:`LSTSQ_MAX_COLUMNS` columns; past it ``M^T = Q R`` (reduced QR),
+    ``y = Q z`` with ``z`` the least-norm solution of ``R^T z = r``: the same answer (``y`` lies in the
+    row space of ``M``, where ``Q`` is an isometry).
+    """
+    if M.shape[1] <= LSTSQ_MAX_COLUMNS:
+        return np.linalg.lstsq(M, r, rcond=None)[0]
+    Q, R = np.linalg.qr(M.T, mode="reduced")
+    z = np.linalg.lstsq(R.T, r, rcond=None)[0]
+    return Q @ z
+
+
 # --------------------------------------------------------------------- helpers
 def lp_state_scale(system: ModalResponse, x0: np.ndarray, u_max: float, T: float) -> np.ndarray:
     """How large each (shifted) state gets during a move of length ``T``: the unit of LP variables.
@@ -46,7 +66,7 @@ def correct_arrival(G: np.ndarray, w: np.ndarray, u: np.ndarray, movable: np.nda
         return u
     for _ in range(3):
         r = w - G.T @ u
-        du, *_ = np.linalg.lstsq(G[idx].T, r, rcond=None)
+        du = min_norm_solve(G[idx].T, r)
         u[idx] += du
     return u
 
@@ -68,7 +88,7 @@ def least_norm_correction(
         if np.count_nonzero(wts) < G.shape[1]:
             return None
         M = G.T * wts  # (n, K): columns scaled by slack
-        y, *_ = np.linalg.lstsq(M, r, rcond=None)
+        y = min_norm_solve(M, r)
         du = wts * y
         ok = np.abs(u + du) <= u_max
         u = np.clip(u + du, -u_max, u_max)
