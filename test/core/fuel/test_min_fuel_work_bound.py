@@ -11,7 +11,7 @@ propagation (``scipy.linalg.expm``).
 import math
 
 import numpy as np
-from scipy.linalg import expm
+from reference_solutions import expm_pieces
 
 from flexmotion_ros.core import ModalModel
 from flexmotion_ros.core.config import PlannerConfig
@@ -24,19 +24,8 @@ from flexmotion_ros.core.simulation.prepared import prepare
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 from flexmotion_ros.core.time_optimal.switching import sample_grid
 
-# fuzz case 191: a damped rigid body, a fast damped mode, a 340 s move; no bang-off-bang optimum
-CASE_191 = MoveProblem(
-    ModalModel(
-        b0=3.827857075311419,
-        c=-0.47005080689106726,
-        omega=(0.9515288359977838, 39.46764504597698),
-        zeta=(0.09892532295431575, 0.1159604645695962),
-        b=(1.3542651680788085, -1.8998907854323366),
-    ),
-    0.180775650470088,
-    [0.0] * 6,
-    409.1455944305457,
-)
+from .test_min_fuel_bounded import CASE_191
+
 # fuzz case 363: a damped rigid body, three modes, a 79 s move (7,900 samples at 100 Hz)
 CASE_363 = MoveProblem(
     ModalModel(
@@ -53,16 +42,8 @@ CASE_363 = MoveProblem(
 
 
 def _final_error(problem: MoveProblem, u: np.ndarray, dt: float) -> np.ndarray:
-    """Final state minus the target (forward-order samples), one expm of the augmented matrix."""
-    A, B = problem.model.A(), problem.model.B()
-    n = A.shape[0]
-    M = np.zeros((n + 1, n + 1))
-    M[:n, :n], M[:n, n] = A, B
-    E = expm(M * dt)
-    x = np.asarray(problem.x0, float)
-    for uk in u:
-        x = E[:n, :n] @ x + E[:n, n] * uk
-    return x - problem.model.rest_state(problem.target)
+    """Final state minus the target (forward-order samples), by the reference's own expm."""
+    return expm_pieces(problem, np.full(len(u), dt), u)[-1] - problem.model.rest_state(problem.target)
 
 
 def test_dual_evaluations_share_one_grid_basis(monkeypatch):
