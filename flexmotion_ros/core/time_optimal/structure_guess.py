@@ -30,12 +30,17 @@ from collections.abc import Callable
 import numpy as np
 
 from .reachable_set import Shooting
-from .switch_newton import refine_switches, updated_structure
+from .switch_newton import new_pairs, refine_switches, updated_structure
 from .switching import root_grid, sample_grid
 from .zero_free import examined_points
 
 #: Newton runs (first structure + edits) before the fast path gives up.
 MAX_TRIES = 4
+#: Extra Newton runs for structures with a pulse in one dip only (:func:`one_dip_structures`),
+#: when the edits of :data:`MAX_TRIES` find nothing.
+MAX_ALTERNATIVES = 8
+#: Points sampled inside a dip of ``S`` to measure how deep it goes.
+DIP_SAMPLES = 5
 #: Two structures with the same first sign and number of switches, every
 #: switch within this (relative to ``T``) of the other's, are the same one.
 SAME_RTOL = 1e-3
@@ -73,6 +78,7 @@ def newton_from_guess(
     max_switches: int | None = None,
     refine: Callable | None = None,
     structure: tuple[np.ndarray, float] | None = None,
+    switching: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> object | None:
     """Certified extremal from the switch structure of a co-state guess, or None.
 
@@ -103,6 +109,12 @@ def newton_from_guess(
     structure : tuple of (ndarray, float), optional
         The first structure (switch times-to-go in s, first sign) if already
         guessed; default :func:`guess_structure` of ``nuh`` at ``T``.
+    switching : callable, optional
+        ``switching(nuh, tau) -> S``: the switching function of the scaled
+        co-state ``nuh`` at times-to-go ``tau`` (s), to rank the one-dip
+        alternatives (:func:`one_dip_structures`); default from ``sh``.
+        None and no ``sh``: the edits alone (a chain of at most
+        :data:`MAX_TRIES` runs).
 
     Returns
     -------
@@ -115,18 +127,29 @@ def newton_from_guess(
         def refine(roots, sign0, nuh, T):
             return refine_switches(sh, roots, sign0, nuh, T, merge=True)
 
+    if switching is None and sh is not None:
+
+        def switching(nuh, tau):
+            return sh.sys.switching(nuh / sh.s, tau)
+
     if tried is None:
         tried = []
-    for _ in range(MAX_TRIES):
-        if max_switches is not None and roots.size > max_switches:
-            return None
+    # Depth-first: each structure's edit first (the chain of edits, at most MAX_TRIES deep), then
+    # the one-dip alternatives (:func:`one_dip_structures`) of the extremals on the way, deepest dip first.
+    pending = [(roots, sign0, nuh, T, 0)]
+    runs = 0
+    while pending and runs < MAX_TRIES + MAX_ALTERNATIVES:
+        roots, sign0, nuh, T, depth = pending.pop()
+        if depth >= MAX_TRIES or (max_switches is not None and roots.size > max_switches):
+            continue
         if any(_same_structure(roots, sign0, r, s, T) for s, r in tried):
-            return None  # back to a structure that failed (here or in an earlier guess): stop
+            continue  # back to a structure that failed (here or in an earlier guess)
+        runs += 1
         ok, tau, nuh_r, T_r, _ = refine(roots, sign0, nuh, T)
         if tau.size == roots.size:  # a run that merged a pair (refine_switches' merge) tried a smaller structure
             tried.append((sign0, roots))
         if not (np.isfinite(T_r) and T_r > 0.0 and np.all(np.isfinite(nuh_r))):
-            return None
+            continue
         if ok:
             tau = drop_coincident(tau, T_r)
             signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
@@ -134,16 +157,101 @@ def newton_from_guess(
             if accepted is not None:
                 return accepted
             if zeros is None:
-                return None
+                continue
+            if switching is not None:
+                alternatives = one_dip_structures(tau, sign0, zeros, zsign0, lambda x, nu=nuh_r: switching(nu, x))
+                pending.extend((r, sign0, nuh_r, T_r, depth + 1) for r in reversed(alternatives))
             # converged, but S changes sign elsewhere too: adopt its zeros
-            roots, sign0 = updated_structure(tau, sign0, zeros, zsign0)
+            edited = updated_structure(tau, sign0, zeros, zsign0)
         else:
             edited = _drop_merged(tau, sign0, T_r)
             if edited is None:
-                return None
-            roots, sign0 = edited
-        nuh, T = nuh_r, T_r
+                continue
+        pending.append((*edited, nuh_r, T_r, depth + 1))
     return None
+
+
+def one_dip_structures(
+    tau: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float, switching: Callable[[np.ndarray], np.ndarray]
+) -> list[np.ndarray]:
+    """Structures with a narrow pulse added in one dip of ``S`` only, deepest dip first.
+
+    A converged extremal with switches ``tau`` (times-to-go, s) whose
+    switching function ``S`` dips through zero in several places (``zeros``:
+    its proved sign changes) is a wrong structure, and
+    :func:`~.switch_newton.updated_structure` puts a pulse in every dip (or
+    takes the zeros as they are).  The optimum often needs only one: the
+    pulse changes the co-state, and with it the other dips vanish (fuzz case
+    6328, 4 modes: 8 dips, the optimum has a pulse of 48 us in the deepest;
+    case 1678, 1 mode: one dip and a sign change near the end, the optimum
+    has the pulse only).  As an exchange method adds the most violated
+    constraint, these are ``tau`` plus one pair at the point of largest
+    violation of one dip, in decreasing order of that violation (at most
+    :data:`MAX_ALTERNATIVES`); empty when they would only repeat the edit
+    (one clean pair).
+
+    A dip is two consecutive new zeros (not within rounding of a switch) on
+    the same arc of the extremal; an odd new zero on the first arc (a sign
+    change near ``tau = 0``) or the last (near ``T``) is left out, elsewhere
+    its arc has no dip.
+
+    Parameters
+    ----------
+    tau : ndarray
+        Switch times-to-go of the extremal (s), increasing.
+    sign0 : float
+        Sign of ``S`` before the first switch.
+    zeros : ndarray
+        Sign changes of its ``S`` (s) the certificate proved, increasing.
+    zsign0 : float
+        Sign of ``S`` before the first of ``zeros``.
+    switching : callable
+        ``S`` of the extremal at times-to-go (s).
+
+    Returns
+    -------
+    list of ndarray
+        Switch times-to-go (s) of each structure, first sign ``sign0``.
+    """
+    zeros = np.asarray(zeros, float)
+    if zeros.size == 0:
+        return []
+    clean = new_pairs(tau, sign0, zeros, zsign0)
+    if clean is not None and clean[0].size < 2:
+        return []  # the edit itself
+    arc = np.searchsorted(tau, zeros)
+    if tau.size:  # zeros within rounding of a switch are that switch
+        gaps = np.diff(np.concatenate([[0.0], tau]))
+        tol = 1e-3 * max(float(np.min(gaps[gaps > 0.0], initial=1.0)), 1e-12)
+        near = np.minimum(
+            np.abs(zeros - tau[np.clip(arc - 1, 0, tau.size - 1)]), np.abs(zeros - tau[np.clip(arc, 0, tau.size - 1)])
+        )
+        zeros, arc = zeros[near > tol], arc[near > tol]
+    a, b = [], []
+    for k in np.unique(arc):
+        z = zeros[arc == k]
+        if z.size % 2:
+            if k == 0:
+                z = z[1:]
+            elif k == tau.size:
+                z = z[:-1]
+            else:
+                continue
+        a.extend(z[::2])
+        b.extend(z[1::2])
+    if not a:
+        return []
+    a, b = np.array(a), np.array(b)
+    # S at DIP_SAMPLES points inside each dip; the expected sign there is that of the extremal's arc
+    x = a[:, None] + (b - a)[:, None] * (np.arange(1, DIP_SAMPLES + 1) / (DIP_SAMPLES + 1))[None, :]
+    signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
+    expected = signs[np.searchsorted(tau, 0.5 * (a + b))]
+    violation = -expected[:, None] * switching(x.ravel()).reshape(x.shape)
+    worst = np.argmax(violation, axis=1)
+    rows = np.arange(a.size)
+    centre, half = x[rows, worst], 0.05 * (b - a)
+    order = np.argsort(-violation[rows, worst], kind="stable")[:MAX_ALTERNATIVES]
+    return [np.sort(np.concatenate([tau, [centre[k] - half[k], centre[k] + half[k]]])) for k in order]
 
 
 def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray, float]:

@@ -261,8 +261,22 @@ def updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0
     final state, barely changes and Newton starts close.  Otherwise (a pair
     vanished, or no clean pairing) take the zeros as they are.
     """
-    if zsign0 != sign0 or zeros.size <= roots.size or (zeros.size - roots.size) % 2:
+    pairs = new_pairs(roots, sign0, zeros, zsign0)
+    if pairs is None:
         return zeros, zsign0
+    a, b = pairs
+    mid, half = 0.5 * (a + b), 0.05 * (b - a)
+    return np.sort(np.concatenate([roots, mid - half, mid + half])), sign0
+
+
+def new_pairs(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0: float):
+    """The sign changes ``zeros`` (s) has beyond ``roots`` (s), as adjacent pairs ``(a, b)``, or None.
+
+    None when they do not pair cleanly: a different first sign, no more
+    zeros than switches, an odd surplus, or new zeros not adjacent in pairs.
+    """
+    if zsign0 != sign0 or zeros.size <= roots.size or (zeros.size - roots.size) % 2:
+        return None
     k = np.clip(np.searchsorted(roots, zeros), 1, max(roots.size, 1)) - 1
     near = np.zeros(zeros.size, dtype=bool)
     if roots.size:
@@ -271,13 +285,11 @@ def updated_structure(roots: np.ndarray, sign0: float, zeros: np.ndarray, zsign0
         near = d <= 1e-3 * max(float(np.min(gaps[gaps > 0.0], initial=1.0)), 1e-12)
     new = zeros[~near]
     if new.size != zeros.size - roots.size:
-        return zeros, zsign0
+        return None
     idx = np.flatnonzero(~near)
     if np.any(np.diff(idx)[::2] != 1):  # new zeros are not adjacent pairs
-        return zeros, zsign0
-    a, b = new[::2], new[1::2]
-    mid, half = 0.5 * (a + b), 0.05 * (b - a)
-    return np.sort(np.concatenate([roots, mid - half, mid + half])), sign0
+        return None
+    return new[::2], new[1::2]
 
 
 def primal_newton(sh: Shooting, roots: np.ndarray, sign0: float, T: float, max_iter: int = 40):
