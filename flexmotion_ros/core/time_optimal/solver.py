@@ -192,8 +192,9 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
                 raise SolverError(
                     f"time-optimal planner did not converge within its work budget ({sh.evaluations} exact "
                     f"co-state evaluations, {model.n_modes} modes): no switch structure it found reaches the "
-                    f"target (the last one: relative final-state error {getattr(miss, 'relative_error', math.nan):.1e}, "
-                    f"tolerance {FINAL_STATE_RTOL:.0e}); nothing is returned"
+                    f"target (the last one: {roots.size} switches over {T:.4g} s, relative final-state error "
+                    f"{getattr(miss, 'relative_error', math.nan):.1e}, tolerance {FINAL_STATE_RTOL:.0e}); "
+                    f"{_refusal_reason(T_low, start[1])}"
                 ) from miss
             raise
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
@@ -202,6 +203,19 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
     return profile
+
+
+def _refusal_reason(T_low: float, T_estimate: float) -> str:
+    """What a refusal after the work budget can still say: the proved bound, the estimate, what plans such a move.
+
+    ``T_low``: the rigid body's minimum time (s), a proved lower bound on the optimum; ``T_estimate``: the
+    smoothed problems' duration (s), close to the optimum but not a bound.
+    """
+    return (
+        f"the minimum time is at least {T_low:.6g} s (the rigid body's; the smoothed problem puts it near "
+        f"{T_estimate:.4g} s); nothing is returned: plan the move at a sample rate with method fixed_time (an "
+        "arrival time of your choosing, by linear programs, without the continuous optimum), or model fewer modes"
+    )
 
 
 def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:
