@@ -85,7 +85,12 @@ def evaluation_budget(system, T: float) -> int:
 
 
 def smoothed_start(
-    sh: Shooting, T_low: float, T_init: float, levels: tuple[float, ...] = SMOOTHING, nuh: np.ndarray | None = None
+    sh: Shooting,
+    T_low: float,
+    T_init: float,
+    levels: tuple[float, ...] = SMOOTHING,
+    nuh: np.ndarray | None = None,
+    damping: bool = False,
 ) -> tuple[np.ndarray, float]:
     """Co-state direction (scaled) and time (s) from smoothed inner problems.
 
@@ -103,13 +108,14 @@ def smoothed_start(
     bracket crawled to the jump and each level spent all its
     :data:`SMOOTH_OUTER` steps.  (Fixing ``eps T`` from a level's first
     solve, where ``m`` may be far from 1, scaled it badly: two 7-mode moves
-    were refused.)
+    were refused.)  ``damping``: the inner solves damp the Newton steps
+    their line search cuts short (:func:`~.smoothed_dual.inner_smooth`).
     """
     T = max(T_init, T_low, 1e-300)
     for level in levels:
         lo, hi = T_low, math.inf
         for _ in range(SMOOTH_OUTER):
-            nuh, m, dm = inner_smooth(sh, T, nuh, level, smoothing=level / (sh.u_max * T))
+            nuh, m, dm = inner_smooth(sh, T, nuh, level, smoothing=level / (sh.u_max * T), damping=damping)
             if m > 0.0 and abs(math.log(m)) < 1e-3:
                 break
             T, lo, hi = bracketed_step(T, m, dm, lo, hi)

@@ -63,6 +63,9 @@ class Shooting:
         self.u_max = u_max
         self.set_scale(T_scale)
         self.evaluations = 0
+        #: Newton steps of undamped smoothed solves that their line search cut short (or rejected):
+        #: where a damped solve would differ (:func:`~.smoothed_dual.inner_smooth`).
+        self.short_steps = 0
 
     def set_scale(self, T: float) -> None:
         """Per-state scale: how large each state gets during a move of length ``T``."""

@@ -34,7 +34,13 @@ SMOOTH_RTOL = 1e-9
 
 
 def inner_smooth(
-    sh: Shooting, T: float, nuh: np.ndarray | None, eps_rel: float, max_iter: int = 50, smoothing: float | None = None
+    sh: Shooting,
+    T: float,
+    nuh: np.ndarray | None,
+    eps_rel: float,
+    max_iter: int = 50,
+    smoothing: float | None = None,
+    damping: bool = False,
 ):
     """Smoothed, discretised inner problem: a warm start for the exact one.
 
@@ -43,6 +49,15 @@ def inner_smooth(
     function of ``nu``, so Newton's method with a line search converges fast
     from any start, whatever the number of switches.  ``eps``: ``eps_rel``
     times the mean ``|S|`` at the start, or ``smoothing`` (scaled) if given.
+
+    ``damping``: a Newton step the line search cuts below
+    :data:`DAMP_BELOW_STEP` is damped (Levenberg-Marquardt) and tried again.
+    On a coarse grid the curvature sits at fewer grid points than there are
+    unknowns (a short move of 6-8 modes: the reduced Hessian singular to
+    rounding, condition 1e17), Newton's steps are cut to 1e-11 and the solve
+    stops far from its minimum; its ``m`` (an upper bound) then closes the
+    bracket on ``T`` far below the optimum (fuzz case 3476, 8 modes: the warm
+    start at 2.3 s, ``T*`` = 11.59 s).
     """
     sys, s, um = sh.sys, sh.s, sh.u_max
     grid = sample_grid(sys, T)
@@ -79,24 +94,40 @@ def inner_smooth(
         return um * (wq @ (np.sqrt(X * X + eps * eps) - eps))
 
     f = value(S)
+    damp = 0.0  # Levenberg-Marquardt damping (relative to the largest curvature), 0 while Newton works
     for _ in range(max_iter):
         sq = np.sqrt(S * S + eps * eps)
         g = um * (GZ.T @ (wq * S / sq))
         Hr = um * ((GZ.T * (wq * eps * eps / sq**3)) @ GZ)
-        try:
-            dy = -np.linalg.solve(Hr, g)
-        except np.linalg.LinAlgError:
-            dy = -g
-        dec = -float(g @ dy)
-        if dec <= SMOOTH_RTOL * f:
+        t = None
+        while True:
+            H = Hr + (damp * float(np.max(np.diag(Hr)))) * np.eye(Hr.shape[0]) if damp else Hr
+            try:
+                dy = -np.linalg.solve(H, g)
+            except np.linalg.LinAlgError:
+                dy = -g
+            dec = -float(g @ dy)
+            if dec <= SMOOTH_RTOL * f:
+                break
+            dS = GZ @ dy
+            if damping and damp < MAX_DAMPING:
+                # only the steps down to DAMP_BELOW_STEP, in one pass; none: the curvature sits at
+                # fewer grid points than there are unknowns (Hr singular to rounding) and Newton
+                # would crawl: damp it, as Levenberg-Marquardt does, and try again
+                t = _long_step(partial(values, S, dS), f, dec)
+                if t is not None:
+                    break
+                damp = max(MIN_DAMPING, 10.0 * damp)
+                continue
+            t = armijo_step(partial(values, S, dS), f, dec)
+            if t is None or t < DAMP_BELOW_STEP:
+                sh.short_steps += 1
             break
-        step = Z @ dy
-        dS = GZ @ dy
-        t = armijo_step(partial(values, S, dS), f, dec)
-        if t is None:
+        if dec <= SMOOTH_RTOL * f or t is None:
             break
+        damp = 0.0 if damp <= MIN_DAMPING else 0.1 * damp
         fc = value(S + t * dS)
-        nuh = nuh + t * step
+        nuh = nuh + t * (Z @ dy)
         S = S + t * dS
         f = fc
     nu = nuh / s
@@ -105,6 +136,13 @@ def inner_smooth(
     return nuh, f, dm
 
 
+#: A Newton step of the smoothed problem cut below this length by the line search is damped
+#: (Levenberg-Marquardt, :func:`inner_smooth`) and tried again.
+DAMP_BELOW_STEP = 2.0**-12
+#: The damping's first value, relative to the largest diagonal entry of the Hessian ...
+MIN_DAMPING = 1e-10
+#: ... and its largest (the step is then nearly a scaled gradient step).
+MAX_DAMPING = 1e-1
 #: Step lengths ``1, 1/2, ..., 2^-(LINE_SEARCH_STEPS - 1)`` tried by the line search of :func:`inner_smooth`.
 LINE_SEARCH_STEPS = 40
 #: After a full step fails, this many halvings are evaluated per pass over the grid.
@@ -131,6 +169,13 @@ def armijo_step(values, f: float, dec: float) -> float | None:
             return float(ts[ok[0]])
         k += size
     return None
+
+
+def _long_step(values, f: float, dec: float) -> float | None:
+    """The longest step ``t = 2^-k >= DAMP_BELOW_STEP`` with ``values(t) <= f - dec t / 4`` (one call), or None."""
+    ts = 0.5 ** np.arange(round(-math.log2(DAMP_BELOW_STEP)) + 1, dtype=float)
+    ok = np.flatnonzero(values(ts) <= f - 0.25 * ts * dec)
+    return float(ts[ok[0]]) if ok.size else None
 
 
 def graded_grid(system, T: float, per_half_period: float) -> np.ndarray | None:

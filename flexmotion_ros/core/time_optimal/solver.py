@@ -89,6 +89,11 @@ NEAR_RIGID = 1e-5
 #: fraction of the fast path's time, and hands over to it (unchanged) when it
 #: finds nothing.  Only with :data:`FAST_PATH`.
 LEAN_PATH = True
+#: If the fast path finds nothing, try it once more from a warm start whose smoothed inner
+#: problems damp the Newton steps their line search cuts short
+#: (:func:`~.costate_solver.smoothed_start` with ``damping``), before the full solver (which
+#: starts from the undamped one, as before).
+DAMPED_START = True
 #: What the warm start of a replan (:mod:`.warm_start`) runs on: the lean path's pieces.
 WARM_TOOLS = WarmTools(
     lean_move=LeanMove, refine=lean_refine, structure_of=structure_from_samples, newton=newton_from_guess
@@ -174,6 +179,18 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     fast_error = None
     if FAST_PATH:
         fast, fast_error = _fast_path(problem, system, copy.copy(sh), start, t0, T_low)
+        if fast is None and fast_error is None and DAMPED_START and sh.short_steps:
+            # again from a warm start whose inner solves damp the steps their line search cuts short (a
+            # short move of many modes: the undamped one can stop a factor 2-20 below T*); the full
+            # solver below still starts from ``start``, as before
+            try:
+                damped = smoothed_start(copy.copy(sh), T_lb, T_init, damping=True)
+            except Exception as exc:  # noqa: BLE001 - a guess only: the full solver decides
+                damped, fast_error = None, repr(exc)
+            if damped is not None:
+                fast, fast_error = _fast_path(problem, system, copy.copy(sh), damped, t0, T_low, damping=True)
+            if fast is not None:
+                fast.extra["fast_path_stage"] = "damped"
         fast_error = fast_error or lean_error
         if fast is not None:
             if fast_error is not None:  # a bug in the lean path: visible, though the answer stands
@@ -238,6 +255,7 @@ def _fast_path(
     start: tuple[np.ndarray, float],
     t0: float,
     T_low: float,
+    damping: bool = False,
 ) -> tuple[BangBangProfile | None, str | None]:
     """Guess, Newton, certify (:mod:`.structure_guess`).
 
@@ -256,7 +274,9 @@ def _fast_path(
     certified profile (``extra["solver_path"] = "fast"``,
     ``extra["fast_path_candidates"]``) or None (the full solver runs), and
     the ``repr`` of an exception raised inside (a bug: recorded by the
-    caller in ``extra["fast_path_error"]``) or None.
+    caller in ``extra["fast_path_error"]``) or None.  ``damping``: ``start``
+    came from damped inner solves (:func:`smoothed_start`); so does the
+    finer guess.
     """
 
     candidates = 0
@@ -284,7 +304,7 @@ def _fast_path(
             # that the first level rounds off show up as sign changes (a
             # structure already tried is not tried again)
             sh = copy.copy(sh0)
-            nuh, T = smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0])
+            nuh, T = smoothed_start(sh, T_low * (1.0 - 1e-12), start[1], (FINE_SMOOTHING,), start[0], damping)
             profile = newton_from_guess(sh, rescale(sh, nuh, T), T, check, tried, max_switches=MAX_SWITCHES)
     except Exception as exc:  # noqa: BLE001 - whatever went wrong, the full solver decides
         return None, repr(exc)
