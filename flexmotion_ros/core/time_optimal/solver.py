@@ -64,6 +64,7 @@ from .lean import refine as lean_refine
 from .reachable_set import Shooting, rescale, state_scale
 from .rigid_body import rigid_profile, rigid_time
 from .structure_guess import newton_from_guess
+from .switching import POINTS_PER_HALF_PERIOD, fastest_frequency
 from .warm_start import WarmStart, WarmTools, warm_path
 
 __all__ = ["FINAL_STATE_RTOL", "BangBangSolution", "plan_time_optimal", "rigid_time", "solve_bang_bang", "state_scale"]
@@ -94,6 +95,11 @@ LEAN_PATH = True
 #: (:func:`~.costate_solver.smoothed_start` with ``damping``), before the full solver (which
 #: starts from the undamped one, as before).
 DAMPED_START = True
+#: ... on moves whose sampling grid at the warm start's duration has at most this many points (8
+#: per half period of the fastest mode): the singular Hessians are those of coarse grids; on long
+#: moves the second try cost up to 2.6 s (fuzz case 2371, 280,000 points) and answered none of the
+#: 10,000 (the longest it answered: 16,543 points, case 8695).
+DAMPED_MAX_POINTS = 20_000
 #: What the warm start of a replan (:mod:`.warm_start`) runs on: the lean path's pieces.
 WARM_TOOLS = WarmTools(
     lean_move=LeanMove, refine=lean_refine, structure_of=structure_from_samples, newton=newton_from_guess
@@ -179,7 +185,8 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     fast_error = None
     if FAST_PATH:
         fast, fast_error = _fast_path(problem, system, copy.copy(sh), start, t0, T_low)
-        if fast is None and fast_error is None and DAMPED_START and sh.short_steps:
+        points = start[1] * fastest_frequency(system) / math.pi * POINTS_PER_HALF_PERIOD
+        if fast is None and fast_error is None and DAMPED_START and sh.short_steps and points <= DAMPED_MAX_POINTS:
             # again from a warm start whose inner solves damp the steps their line search cuts short (a
             # short move of many modes: the undamped one can stop a factor 2-20 below T*); the full
             # solver below still starts from ``start``, as before
