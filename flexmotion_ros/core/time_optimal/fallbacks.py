@@ -21,6 +21,9 @@ simulation and certificate; a miss raises :class:`SolverError`):
   :data:`NEWTON_STEPS` steps, whatever the model.  The first certified
   candidate is returned (a certified extremal is the optimum), else the
   shortest exact one with the proved bound it has.
+
+When nothing reaches the target, :func:`refusal_reason` words what the
+refusal can still say (the proved bound, what plans such a move).
 """
 
 from __future__ import annotations
@@ -243,3 +246,16 @@ def _without_blip(problem, system, sh, roots, sign0, T, t0, T_low, assemble) -> 
         return None
     better.extra["solver_path"] = SolverPath.SEARCH
     return better
+
+
+def refusal_reason(T_low: float) -> str:
+    """What a refusal of the full solver can still say: the proved bound, what plans such a move.
+
+    ``T_low``: the rigid body's minimum time (s), a proved lower bound on the optimum.  (No estimate
+    of the optimum: the smoothed problems' duration can be a factor 2-20 below it on exactly these moves.)
+    """
+    return (
+        f"the minimum time is at least {T_low:.6g} s (the rigid body's); nothing is returned: plan the move at a "
+        "sample rate with method fixed_time (an arrival time of your choosing, by linear programs, without the "
+        "continuous optimum; one too early is refused with the peak command it needs), or model fewer modes"
+    )

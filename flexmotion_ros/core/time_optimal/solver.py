@@ -56,7 +56,7 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES
 from .certificate import certify
 from .costate_solver import BangBangSolution, smoothed_start, solve_bang_bang, solve_costate
-from .fallbacks import cluster_fallback, end_blip_fallback, structure_fallback
+from .fallbacks import cluster_fallback, end_blip_fallback, refusal_reason, structure_fallback
 from .lean import MAX_MODES as LEAN_MAX_MODES
 from .lean import MAX_POINTS as LEAN_MAX_POINTS
 from .lean import LeanMove, smoothed_guess, structure_from_samples
@@ -218,28 +218,18 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
                     f"co-state evaluations, {model.n_modes} modes): no switch structure it found reaches the "
                     f"target (the last one: {roots.size} switches over {T:.4g} s, relative final-state error "
                     f"{getattr(miss, 'relative_error', math.nan):.1e}, tolerance {FINAL_STATE_RTOL:.0e}); "
-                    f"{_refusal_reason(T_low, start[1])}"
+                    f"{refusal_reason(T_low)}"
                 ) from miss
-            raise
+            # the structures found miss the target: the same facts, after what was missed
+            refusal = SolverError(f"{str(miss).removesuffix('; nothing is returned')}; {refusal_reason(T_low)}")
+            refusal.relative_error = getattr(miss, "relative_error", math.nan)
+            raise refusal from miss
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
         profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, _assemble) or profile
     profile.extra.setdefault("solver_path", SolverPath.FULL)
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
     return profile
-
-
-def _refusal_reason(T_low: float, T_estimate: float) -> str:
-    """What a refusal after the work budget can still say: the proved bound, the estimate, what plans such a move.
-
-    ``T_low``: the rigid body's minimum time (s), a proved lower bound on the optimum; ``T_estimate``: the
-    smoothed problems' duration (s), close to the optimum but not a bound.
-    """
-    return (
-        f"the minimum time is at least {T_low:.6g} s (the rigid body's; the smoothed problem puts it near "
-        f"{T_estimate:.4g} s); nothing is returned: plan the move at a sample rate with method fixed_time (an "
-        "arrival time of your choosing, by linear programs, without the continuous optimum), or model fewer modes"
-    )
 
 
 def _rigid_residual(system: ModalResponse, x0: np.ndarray, u_max: float, rigid) -> float:

@@ -75,3 +75,32 @@ def test_the_method_the_refusal_names_plans_the_move(rate):
     dev = X - target
     scale = np.maximum(np.max(np.abs(dev), axis=0), 1e-300)
     assert float(np.max(np.abs(dev[-1]) / scale)) <= 1e-8
+
+
+MODEL_9257 = ModalModel(
+    b0=2.6432298694523357,
+    c=-0.8466068029866766,
+    omega=(1.1425653223956036, 1.3369119855231455, 1.667995398320832, 1.9476644509509904, 2.211957264222012,
+           4.321877737021347, 5.642433759040515, 18.94187424315124),
+    zeta=(0.19838887106482386, 0.23497624062841863, 0.006445424234572295, 0.16265466583362406, 0.1825991321590089,
+          0.22192330324770074, 0.023573561790424635, 0.2760723738519438),
+    b=(0.4277413265680142, -0.6241913164134398, 1.5132174213436846, -1.6073919980053863, -0.16754164513429604,
+       -1.2069057054503873, 1.9794554153482002, -0.22761894989032916),
+)  # fmt: skip
+
+
+def test_a_refusal_for_a_missed_target_names_the_bound_and_a_method_that_plans():
+    """Fuzz case 9257 (8 modes, from rest): within the budget, but every structure found misses the target."""
+    problem = state_to_rest(MODEL_9257, 3.3282974630115865, np.zeros(18), 0.026188786159263067)
+    T_rigid = rigid_time(problem.model, problem.u_max, problem.shifted_initial(), problem.include_position)
+    try:
+        profile = plan_time_optimal(problem)
+    except SolverError as exc:
+        text = str(exc)
+        assert "missed the target" in text
+        assert f"at least {T_rigid:.6g} s" in text
+        assert "fixed_time" in text
+        assert text.endswith("or model fewer modes")  # said once, at the end
+        return
+    assert profile.certified, profile.certificate.message
+    assert profile.duration >= T_rigid * (1.0 - 1e-12)
