@@ -142,12 +142,13 @@ def guesses(warm: WarmStart, T: float, lm, structure_of: Callable):
     Newton moves the switches from there to their place; duplicates are skipped by the caller.
     """
     base = [(warm.roots, warm.sign0)]
+    yield base[0]  # before sampling S: the remainder's structure answers most warm starts that answer
     tau = np.linspace(0.0, T, lm.grid_points(T) + 1)
     S = lm.response.switching(warm.nu, tau)
     sampled = structure_of(tau, S, lm.n)
     if sampled[0].size != warm.roots.size or sampled[1] != warm.sign0:
         base.append(sampled)
-    yield from base
+        yield sampled
     d = EDGE_GUESS * T
     for roots, sign0 in base:
         if roots.size == 0 or roots[0] > 2.0 * d:

@@ -30,7 +30,7 @@ from flexmotion_ros.core.time_optimal import solver as time_optimal
 from flexmotion_ros.core.time_optimal import warm_start as warm_module
 from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
 from flexmotion_ros.core.time_optimal.switch_newton import damped_step
-from flexmotion_ros.core.time_optimal.warm_start import WarmStart, remainder, warm_path
+from flexmotion_ros.core.time_optimal.warm_start import WarmStart, guesses, remainder, warm_path
 
 from .test_lean import small_models
 from .test_solver_properties import SETTINGS, check_continuous, describe, log_uniform, signs, units
@@ -247,3 +247,15 @@ def test_damped_step_tries_at_most_halvings_steps():
     assert damped_step(tau, nuh, 1.0, step, 1.0, residual, 3) is None and len(calls) == 3
     calls.clear()
     assert damped_step(tau, nuh, 1.0, step, 1.0, residual) is None and len(calls) == 12  # the default
+
+
+def test_the_remainders_structure_comes_before_any_sampling():
+    # the first guess answers most warm starts that answer: the sampled structure is computed only if asked
+    def unsampled(nu, tau):
+        raise AssertionError("the switching function was sampled before the first guess was tried")
+
+    nominal = plan_time_optimal(rest_to_rest(WB, 1.0, 1.0))
+    warm = remainder(nominal, 0.5)
+    lm = SimpleNamespace(response=SimpleNamespace(switching=unsampled), grid_points=lambda T: 32, n=4)
+    roots, sign0 = next(guesses(warm, warm.duration, lm, structure_of=None))
+    assert roots is warm.roots and sign0 == warm.sign0
