@@ -195,10 +195,14 @@ def replan(
     warm_start : bool
         Pass the rest of the plan being executed at the splice as the
         planner's warm start (:func:`warm_start_at`), if there is one.  Off
-        by default (the node's choice too): the same optimum, but on a quiet
-        machine the warm replan's median was 0.90-0.93x the cold one for one
-        mode and 0.99-1.31x for two and three (``bench/replan_latency.py``,
-        two seeds): a failed warm attempt costs more than a hit saves.
+        by default (the node's choice too): the same optimum, but the
+        bench's kicks change the optimum's structure in most states, and a
+        failed warm attempt costs about what a hit saves.  Since the warm
+        start gives up after one stalled Newton run
+        (:data:`~flexmotion_ros.core.time_optimal.warm_start.NEAR_RESIDUAL`)
+        the warm replan's median CPU time is 0.88-0.95x the cold one for one
+        mode and 1.01-1.07x for two and three (it was up to 1.5x for three;
+        ``bench/replan_latency.py --clock cpu``, seeds 0 and 1, 2026-12-05).
     gentle : bool
         After arrival (the timeline sends nothing but holds from the splice
         on), plan the correction at :func:`correction_bound` (at most

@@ -251,13 +251,16 @@ def structure_from_samples(tau: np.ndarray, S: np.ndarray, n: int) -> tuple[np.n
     return np.sort(np.concatenate([roots, pairs])), sign0
 
 
-def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30):
+def refine(
+    lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: float, max_iter: int = 30, halvings: int = 12
+):
     """Switch-time Newton for a fixed structure: :func:`~.switch_newton.refine_switches` on the kernel.
 
     Unknowns ``(tau_1..tau_L, nu, T)``; equations: final state zero (``n``),
     switching function zero at each switch (``L``), one normalisation of
     ``nu``.  Returns ``(ok, roots, nuh, T, residual)``; ``ok`` is False if
-    the structure broke (switches crossed or left ``(0, T)``) or Newton stalled,
+    the structure broke (switches crossed or left ``(0, T)``) or Newton stalled
+    (no step of the line search, at most ``halvings`` tries, lowered the residual),
     or at once for more than :data:`~.switch_newton.DENSE_UP_TO` switches (the
     whole system is solved densely here; the fast path eliminates).
     """
@@ -311,7 +314,7 @@ def refine(lm: LeanMove, roots: np.ndarray, sign0: float, nuh: np.ndarray, T: fl
             slope = max(float(np.max(np.abs(J[: n + L, :L]), initial=0.0)), float(np.max(np.abs(J[:n, -1]))))
             floor = ROUNDING_FLOOR * eps * T * slope
             break
-        accepted = damped_step(tau, nuh, T, step, rn, residual)
+        accepted = damped_step(tau, nuh, T, step, rn, residual, halvings)
         if accepted is None:
             break
         tau, nuh, T, r, g, kv, rn = accepted

@@ -151,16 +151,19 @@ def merging_pair(tau: np.ndarray, dtau: np.ndarray, T: float) -> int | None:
     return k if tau[k + 1] - tau[k] <= MERGE_RTOL * T else None
 
 
-def damped_step(tau: np.ndarray, nuh: np.ndarray, T: float, step: np.ndarray, rn: float, residual) -> tuple | None:
+def damped_step(
+    tau: np.ndarray, nuh: np.ndarray, T: float, step: np.ndarray, rn: float, residual, halvings: int = 12
+) -> tuple | None:
     """The Newton ``step`` on (switch times ``tau``, co-state ``nuh``, ``T``), halved until the residual drops.
 
     A candidate must keep ``0 < tau_1 < ... < tau_L < T``; ``residual(tau, nu, T)`` returns ``(r, g, extra)``.
     Converged to within ``POLISH_TOL``: one more full step if it helps, no line search.  Returns
-    ``(tau, nu, T, r, g, extra, |r|_inf)`` of the accepted point, or None if no halving improves on ``rn``.
+    ``(tau, nu, T, r, g, extra, |r|_inf)`` of the accepted point, or None if none of the step and its
+    ``halvings - 1`` halvings improves on ``rn``.
     """
     L, n = tau.size, nuh.size
     t = 1.0
-    for _ in range(12 if rn > POLISH_TOL else 1):
+    for _ in range(halvings if rn > POLISH_TOL else 1):
         tau_c = tau + t * step[:L]
         T_c = T + t * float(step[-1])
         nu_c = nuh + t * step[L : L + n]

@@ -45,6 +45,22 @@ MAX_CANDIDATES = 2
 #: A candidate within this (relative) of the rigid body's lower bound is left to the cold solver: Newton
 #: there converges to rounding-level extremals up to 4e-9 below the bound (seen: a 2-mode move, 6.668 s).
 NEAR_RIGID_RTOL = 1e-9
+#: Tries of each Newton step's line search (the full step, then halved): from a nearby state's structure the
+#: full step or its half is taken (366 of 392 steps on bench/replan_latency.py's warm hits, none needed more
+#: than 4 tries); a step that 4 cannot improve means a structure that is wrong, and 12 tries cost 12 exact
+#: evaluations before saying so.
+HALVINGS = 4
+#: Newton runs in all (the remainder's structure and its edits) before the cold solver takes over: a warm
+#: start answered after at most 4 in random 1-3 mode replans; converged but wrong extremals whose
+#: certificate's zeros led from edit to edit took 8-9 runs, 10 ms, on bench/replan_latency.py's 3-mode states.
+MAX_RUNS = 4
+#: Newton from the remainder's structure that stops (not converged) with a residual (relative to the state's
+#: scale) above this gives up the warm start: the state is far from the remainder's, and the edits of
+#: :func:`guesses` rarely converge from there.  Below it a switch is usually missing at an end (a disturbance
+#: generically adds one): the edits answer.  With this, :data:`HALVINGS` and :data:`MAX_RUNS`, on 294 random
+#: 1-3 mode replans (disturbances 1e-7..1e-1 of the move's excursions) the warm start answered 81 (86 before)
+#: and the warm median fell from 6.6 to 5.0 ms of CPU, the cold one 5.3 ms.
+NEAR_RESIDUAL = 1e-3
 #: Where :func:`guesses` puts a switch added at an end (time-to-go, fraction of the duration).
 EDGE_GUESS = 0.02
 
@@ -126,12 +142,13 @@ def guesses(warm: WarmStart, T: float, lm, structure_of: Callable):
     Newton moves the switches from there to their place; duplicates are skipped by the caller.
     """
     base = [(warm.roots, warm.sign0)]
+    yield base[0]  # before sampling S: the remainder's structure answers most warm starts that answer
     tau = np.linspace(0.0, T, lm.grid_points(T) + 1)
     S = lm.response.switching(warm.nu, tau)
     sampled = structure_of(tau, S, lm.n)
     if sampled[0].size != warm.roots.size or sampled[1] != warm.sign0:
         base.append(sampled)
-    yield from base
+        yield sampled
     d = EDGE_GUESS * T
     for roots, sign0 in base:
         if roots.size == 0 or roots[0] > 2.0 * d:
@@ -230,20 +247,32 @@ def warm_path(
             lambda: assemble(problem, system, nuh / lm.s, T, roots, signs, t0, lm.evaluations, T_low)
         )
 
+    nuh = nuh / np.linalg.norm(nuh)
+    first = tools.refine(lm, warm.roots, warm.sign0, nuh, T, MAX_ITER, HALVINGS)
+    converged, residual = first[0], first[4]
+    if not converged and not residual <= NEAR_RESIDUAL:
+        # far from the remainder's structure: its edits rarely converge there, and cost more than the cold
+        # solver (bench/replan_latency.py, 3 modes: up to 10 ms, the warm replan's median 1.6x the cold one)
+        return None
+
+    runs = 1
+
+    def refine(roots, sign0, nuh, T):
+        nonlocal runs
+        if roots is warm.roots:  # the remainder's run, done above
+            return first
+        if runs >= MAX_RUNS:  # a non-finite duration stops the structure edits at once
+            return False, roots, nuh, math.nan, math.inf
+        runs += 1
+        return tools.refine(lm, roots, sign0, nuh, T, MAX_ITER, HALVINGS)
+
     tried: list = []
     profile = None
     for structure in guesses(warm, T, lm, tools.structure_of):
         profile = tools.newton(
-            None,
-            nuh / np.linalg.norm(nuh),
-            T,
-            check,
-            tried,
-            max_switches=MAX_SWITCHES,
-            refine=lambda roots, sign0, nuh, T: tools.refine(lm, roots, sign0, nuh, T, MAX_ITER),
-            structure=structure,
+            None, nuh, T, check, tried, max_switches=MAX_SWITCHES, refine=refine, structure=structure
         )
-        if profile is not None or candidates >= MAX_CANDIDATES:
+        if profile is not None or candidates >= MAX_CANDIDATES or runs >= MAX_RUNS:
             break
     if profile is not None:
         profile.extra["solver_path"] = SolverPath.FAST
@@ -257,7 +286,10 @@ __all__ = [
     "EDGE_GUESS",
     "EDGE_RTOL",
     "MAX_CANDIDATES",
+    "HALVINGS",
     "MAX_ITER",
+    "MAX_RUNS",
+    "NEAR_RESIDUAL",
     "WarmStart",
     "WarmTools",
     "guesses",

@@ -11,6 +11,7 @@ solver to answer, unchanged.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -28,7 +29,8 @@ from flexmotion_ros.core.simulation.prepared import prepare
 from flexmotion_ros.core.time_optimal import solver as time_optimal
 from flexmotion_ros.core.time_optimal import warm_start as warm_module
 from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
-from flexmotion_ros.core.time_optimal.warm_start import WarmStart, remainder, warm_path
+from flexmotion_ros.core.time_optimal.switch_newton import damped_step
+from flexmotion_ros.core.time_optimal.warm_start import WarmStart, guesses, remainder, warm_path
 
 from .test_lean import small_models
 from .test_solver_properties import SETTINGS, check_continuous, describe, log_uniform, signs, units
@@ -199,3 +201,61 @@ def test_plan_move_with_a_warm_start_streams_the_same_samples(rate):
     assert warm.sampled.commands.size == cold.sampled.commands.size and warm.sampled.minimal == cold.sampled.minimal
     assert np.max(np.abs(warm.sampled.commands - cold.sampled.commands)) <= 1e-9
     assert np.max(np.abs(warm.sampled.commands)) <= 1.0
+
+
+def failing_refine(runs: list, residual: float):
+    """A Newton that never converges and stops at ``residual``, counting its runs in ``runs``."""
+
+    def refine(lm, roots, sign0, nuh, T, max_iter, halvings=12):
+        runs.append(halvings)
+        return False, roots, nuh, T, residual
+
+    return refine
+
+
+def no_assemble(*args):
+    raise AssertionError("nothing converged: nothing to certify")
+
+
+@pytest.mark.parametrize(
+    ("residual", "most"),
+    [(0.1, 1), (1e-6, warm_module.MAX_RUNS)],  # far from the remainder's structure: given up at once
+)
+def test_a_failing_warm_start_is_bounded(residual, most):
+    # bench/replan_latency.py's 3-mode states: the edits of a wrong structure took up to 14 Newton runs (10 ms),
+    # and the warm replan's median was 1.6x the cold one
+    runs = []
+    nominal = plan_time_optimal(rest_to_rest(WB, 1.0, 1.0))
+    problem = state_to_rest(WB, 1.0, state_on(nominal, 0.5), 1.0)
+    move = prepare(problem)
+    T_low = rigid_time(WB, 1.0, move.x0, True)
+    tools = replace(time_optimal.WARM_TOOLS, refine=failing_refine(runs, residual))
+    out = warm_path(problem, move.response, move.x0, remainder(nominal, 0.5), 0.0, T_low, no_assemble, tools)
+    assert out is None and 1 <= len(runs) <= most
+    assert set(runs) == {warm_module.HALVINGS}  # each step's line search bounded too
+
+
+def test_damped_step_tries_at_most_halvings_steps():
+    calls = []
+
+    def residual(tau, nuh, T):
+        calls.append(T)
+        return np.ones(3), None, None  # never better than rn = 1
+
+    tau, nuh = np.array([0.3, 0.6]), np.array([1.0, 0.0])
+    step = np.array([0.01, 0.01, 0.0, 0.0, 0.1])
+    assert damped_step(tau, nuh, 1.0, step, 1.0, residual, 3) is None and len(calls) == 3
+    calls.clear()
+    assert damped_step(tau, nuh, 1.0, step, 1.0, residual) is None and len(calls) == 12  # the default
+
+
+def test_the_remainders_structure_comes_before_any_sampling():
+    # the first guess answers most warm starts that answer: the sampled structure is computed only if asked
+    def unsampled(nu, tau):
+        raise AssertionError("the switching function was sampled before the first guess was tried")
+
+    nominal = plan_time_optimal(rest_to_rest(WB, 1.0, 1.0))
+    warm = remainder(nominal, 0.5)
+    lm = SimpleNamespace(response=SimpleNamespace(switching=unsampled), grid_points=lambda T: 32, n=4)
+    roots, sign0 = next(guesses(warm, warm.duration, lm, structure_of=None))
+    assert roots is warm.roots and sign0 == warm.sign0
