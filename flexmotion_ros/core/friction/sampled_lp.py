@@ -120,10 +120,17 @@ class FrictionLP:
         self.I = np.arange(model.n_states) if problem.include_position else np.arange(1, model.n_states)
         self._kd: dict[int, tuple] = {}
         self.solves = 0
+        #: Rows plus columns of every LP solved (HiGHS's work grows with them): a load-independent budget.
+        self.work = 0
         #: LPs that had a solution (whatever its peak): none at all says the samples are too coarse.
         self.feasible_solves = 0
         #: Set by :func:`fastest_samples` when more samples stopped changing the least peak.
         self.stalled = False
+        # answers of :meth:`solve` by (K, pattern, signs): the count and pattern searches ask for the same LP
+        # again (a fixed point that returns to its start, the template and the monotone search agreeing):
+        # 284 of 2,503 LPs in seed-18 fuzz cases 0-99 at 100 Hz (2026-12-05); HiGHS is deterministic, so a
+        # repeated LP is answered from here (the same object, read-only arrays)
+        self._solved: dict[tuple, FrictionSolution | None] = {}
 
     def kdata(self, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(G, Hf, free, pw)``: effect of ``u_k`` and of unit friction on interval ``k`` on ``x_K``, the
@@ -175,6 +182,22 @@ class FrictionLP:
         ``G^T z = mu w``; the velocities are chain variables ``y_j = mu v_j``
         (``y_{j+1} = ev y_j + gv z_j - F fv s_j mu``), so every sign condition is a bound.
         """
+        if held is not None:
+            return self._solve(K, s, signs, held)
+        s = np.asarray(s, float)
+        key = (K, s.tobytes(), bool(signs))
+        if key not in self._solved:
+            sol = self._solve(K, s, signs, None)
+            if sol is not None:
+                for a in (sol.u, sol.pattern):
+                    a.flags.writeable = False
+            self._solved[key] = sol
+        return self._solved[key]
+
+    def _solve(
+        self, K: int, s: np.ndarray, signs: bool, held: tuple[np.ndarray, np.ndarray] | None
+    ) -> FrictionSolution | None:
+        """:meth:`solve` without the memo."""
         G, Hf, free, pw = self.kdata(K)
         s = np.asarray(s, float)
         w = -free + self.F * (s @ Hf)
@@ -213,6 +236,7 @@ class FrictionLP:
         cost = np.zeros(nv)
         cost[imu] = -1.0
         self.solves += 1
+        self.work += nv + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
         res = solve_lp(
             cost=cost,
             A_ub=A_ub,
@@ -275,6 +299,7 @@ class FrictionLP:
                     rhs.append(sd * c[js])
                 A_ub, b_ub = np.vstack(blocks), np.concatenate(rhs)
             self.solves += 1
+            self.work += nF + 1 + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
             res = solve_lp(
                 cost=cost,
                 A_ub=A_ub,
