@@ -182,6 +182,10 @@ if highspy is not None:
     }
 
 
+#: HiGHS's own default iteration limits (``kHighsIInf``): no limit.
+_NO_ITERATION_LIMIT = 2147483647
+
+
 def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     """``+-inf`` as HiGHS's infinity (itself ``inf`` in recent versions: nothing to do)."""
     if np.isinf(highspy.kHighsInf):
@@ -193,7 +197,8 @@ def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
+def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, limits, tolerances) -> LpSolution:
+    time_limit_s, iteration_limit = limits
     n = c.size
     m_ub = 0 if b_ub is None else b_ub.size
     A = _stack_rows(A_ub, A_eq, n)
@@ -206,13 +211,18 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
     # (measured: a 0.05 s limit refused every solve after 0.05 s of solves in total): the limit of this
     # solve is the clock now plus its own share
     limit = h.getRunTime() + float(time_limit_s) if time_limit_s is not None else np.inf
-    options = (method.value, "on" if presolve else "off", limit, primal, dual)
+    iterations = (
+        _NO_ITERATION_LIMIT if iteration_limit is None else max(0, min(int(iteration_limit), _NO_ITERATION_LIMIT))
+    )
+    options = (method.value, "on" if presolve else "off", limit, primal, dual, iterations)
     if options != getattr(_local, "options", None):  # set only what changed since this thread's last call
         h.setOptionValue("solver", options[0])
         h.setOptionValue("presolve", options[1])
         h.setOptionValue("time_limit", options[2])
         h.setOptionValue("primal_feasibility_tolerance", primal)
         h.setOptionValue("dual_feasibility_tolerance", dual)
+        h.setOptionValue("simplex_iteration_limit", iterations)
+        h.setOptionValue("ipm_iteration_limit", iterations)
         _local.options = options
     passed = h.passModel(
         n,
@@ -298,10 +308,13 @@ _SCIPY_STATUS = {0: LpStatus.OPTIMAL, 1: LpStatus.TIME_LIMIT, 2: LpStatus.INFEAS
 _SCIPY_METHOD = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
 
 
-def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
+def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, limits, tolerances) -> LpSolution:
+    time_limit_s, iteration_limit = limits
     options = {"presolve": bool(presolve)}
     if time_limit_s is not None:
         options["time_limit"] = float(time_limit_s)
+    if iteration_limit is not None:
+        options["maxiter"] = max(0, int(iteration_limit))
     for name, tol in zip(("primal_feasibility_tolerance", "dual_feasibility_tolerance"), tolerances):
         if tol is not None:
             options[name] = float(tol)
@@ -344,6 +357,7 @@ def solve_lp(
     primal_feasibility_tolerance: float | None = None,
     dual_feasibility_tolerance: float | None = None,
     backend: LpBackend | None = None,
+    iteration_limit: int | None = None,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
 
@@ -361,12 +375,16 @@ def solve_lp(
         HiGHS's presolve; if it leaves no verdict (``OTHER``), the LP is asked
         once more without it.
     time_limit_s : float, optional
-        Wall-time limit (s); reaching it gives ``TIME_LIMIT``.
+        Wall-time limit (s); reaching it gives ``TIME_LIMIT``.  The answer then depends on the
+        machine's load: a planner whose result must be reproducible uses ``iteration_limit``.
     primal_feasibility_tolerance, dual_feasibility_tolerance : float, optional
         HiGHS's tolerances (``linprog``'s options of the same names); default
         :data:`DEFAULT_FEASIBILITY_TOL`, HiGHS's own.
     backend : LpBackend, optional
         Default :data:`DEFAULT_BACKEND` (``HIGHSPY`` when installed).
+    iteration_limit : int, optional
+        A work budget: simplex (and interior-point) iterations; reaching it gives ``TIME_LIMIT``.
+        Unlike ``time_limit_s`` it does not depend on the machine's load (the same LP, the same answer).
 
     Returns
     -------
@@ -388,12 +406,13 @@ def solve_lp(
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
-    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
+    limits = (time_limit_s, iteration_limit)
+    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, limits, tolerances)
     if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
         # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
         # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
         # no verdict with presolve asks once without it
-        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances)
+        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, limits, tolerances)
         if again.status is not LpStatus.OTHER:
             return again
     return res

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix, vstack
 
 from ..linear_program import LpMethod, LpStatus, solve_lp
-from .sampled_lp import FrictionLP
+from .sampled_lp import FrictionLP, lp_iteration_limit
 
 #: The move's peak may exceed the proved lower bound on the least peak by this (relative): the returned
 #: commands are the LP's, corrected (least norm) to land exactly, which moves the peak by up to ~2e-5 of
@@ -190,7 +190,7 @@ def certify_sampled(lp: FrictionLP, pattern: np.ndarray, u: np.ndarray) -> Patte
         lower=np.full(K + 1, -np.inf),
         upper=np.full(K + 1, np.inf),
         method=LpMethod.DUAL_SIMPLEX,
-        time_limit_s=1.0 + K / 500.0,
+        iteration_limit=lp_iteration_limit(K + 1, A_ub.shape[0] + A_eq.shape[0]),  # work, not wall time
         presolve=False,
         primal_feasibility_tolerance=1e-10,
         dual_feasibility_tolerance=1e-10,

@@ -159,3 +159,23 @@ def test_a_succeeding_continuation_still_reaches_the_force(monkeypatch):
     out, solves = _continuation_solves(problem, F, monkeypatch)
     assert out is not None and out[0].sys.F == F
     assert len(solves) == 1 and solves[0][0]
+
+
+def test_a_repeated_structure_lp_is_answered_without_highs(monkeypatch):
+    """The count and pattern searches ask for the same (samples, pattern, signs) LP again (11 % of the LPs of
+    seed-18 cases 0-99): HiGHS solves it once, the answer is the same object, its arrays read-only."""
+    problem, F = fuzz_3()
+    lp = FrictionLP(problem, F, 0.05)
+    calls = []
+    real = sampled_lp.solve_lp
+    monkeypatch.setattr(sampled_lp, "solve_lp", lambda **kw: calls.append(kw) or real(**kw))
+    s = np.ones(40)
+    first = lp.solve(40, s, signs=False)
+    assert first is not None
+    assert lp.solve(40, s.copy(), signs=False) is first
+    assert len(calls) == 1 and lp.solves == 1
+    assert lp.solve(40, s) is not first  # another LP (with sign rows)
+    assert len(calls) == 2
+    assert not first.u.flags.writeable and not first.pattern.flags.writeable
+    fresh = FrictionLP(problem, F, 0.05).solve(40, s, signs=False)
+    assert np.array_equal(fresh.u, first.u) and fresh.t == first.t

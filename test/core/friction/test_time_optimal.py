@@ -352,9 +352,9 @@ def test_sampled_friction_move_is_exact_and_bounded(wb_friction):
 
 
 def test_a_spent_sampled_budget_is_a_solver_failure(monkeypatch, wb_friction):
-    """Issue 18: past the sampled search's ``TIME_BUDGET_S`` the planner stops with one line naming the
+    """Issue 18: past the sampled search's ``WORK_BUDGET`` (LP rows and columns) the planner stops with one line naming the
     budget (it hung for minutes before); nothing is returned."""
-    monkeypatch.setattr(zoh_mod, "TIME_BUDGET_S", -1.0)
+    monkeypatch.setattr(zoh_mod, "WORK_BUDGET", 0)
     prof = wb_friction[0.3]
     with pytest.raises(SolverError, match="planning budget") as info:
         plan_time_optimal_friction_zoh(prof.problem, 0.3, 100.0, prof)
