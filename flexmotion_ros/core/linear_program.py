@@ -107,6 +107,30 @@ class LpSolution:
     ub_marginals: np.ndarray | None
     message: str
     backend: LpBackend
+    #: The optimal basis (OPTIMAL with ``return_basis`` on the highspy backend only).
+    basis: LpBasis | None = None
+    #: HiGHS's simplex iteration count (OPTIMAL on the highspy backend only; 0 from an optimal start basis).
+    iterations: int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class LpBasis:
+    """A simplex basis of one LP: HiGHS's status of every column and of every row.
+
+    Attributes
+    ----------
+    col_status : ndarray of int, shape (n,)
+    row_status : ndarray of int, shape (m,)
+        The ``A_ub`` rows, then the ``A_eq`` rows.  Values are HiGHS's ``HighsBasisStatus``:
+        0 at the lower bound, 1 basic (:data:`BASIC`), 2 at the upper bound, 3 zero, 4 nonbasic.
+    """
+
+    col_status: np.ndarray
+    row_status: np.ndarray
+
+
+#: ``LpBasis`` status of a basic column or row (a new row's slack starts basic: the basis stays a basis).
+BASIC = 1
 
 
 def _csc_parts(A) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -193,7 +217,21 @@ def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
+def _solve_highspy(
+    c,
+    A_ub,
+    b_ub,
+    A_eq,
+    b_eq,
+    lower,
+    upper,
+    method,
+    presolve,
+    time_limit_s,
+    tolerances,
+    start_basis=None,
+    want_basis=False,
+) -> LpSolution:
     n = c.size
     m_ub = 0 if b_ub is None else b_ub.size
     A = _stack_rows(A_ub, A_eq, n)
@@ -244,6 +282,8 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
             message="HiGHS refused the model (a bound past its infinity, 1e20): read as infeasible, as linprog",
             backend=LpBackend.HIGHSPY,
         )
+    if start_basis is not None and start_basis.col_status.size == n and start_basis.row_status.size == row_lo.size:
+        _set_basis(h, start_basis)
     h.run()
     model_status = h.getModelStatus()
     status = _STATUS.get(model_status, LpStatus.OTHER)
@@ -264,6 +304,8 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
     row_value = np.array(sol.row_value)
     row_dual = np.array(sol.row_dual)
     objective = float(h.getObjectiveValue())
+    basis = _get_basis(h) if want_basis else None
+    iterations = int(h.getInfo().simplex_iteration_count)
     h.clearSolver()
     # linprog's check of an "optimal" point (its status 4 otherwise): bounds, inequality slack, equality residual
     ok = (
@@ -291,6 +333,28 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
         ub_marginals=row_dual[:m_ub],
         message=message,
         backend=LpBackend.HIGHSPY,
+        basis=basis,
+        iterations=iterations,
+    )
+
+
+def _set_basis(h, basis: LpBasis) -> None:
+    """Start HiGHS's simplex from ``basis`` (the model is passed; a basis it rejects is only not used)."""
+    status = highspy.HighsBasisStatus
+    b = highspy.HighsBasis()
+    b.col_status = [status(int(x)) for x in basis.col_status]
+    b.row_status = [status(int(x)) for x in basis.row_status]
+    b.valid = True
+    h.setBasis(b)
+
+
+def _get_basis(h) -> LpBasis | None:
+    b = h.getBasis()
+    if not b.valid:
+        return None
+    return LpBasis(
+        col_status=np.fromiter((int(x) for x in b.col_status), np.int8, len(b.col_status)),
+        row_status=np.fromiter((int(x) for x in b.row_status), np.int8, len(b.row_status)),
     )
 
 
@@ -344,6 +408,8 @@ def solve_lp(
     primal_feasibility_tolerance: float | None = None,
     dual_feasibility_tolerance: float | None = None,
     backend: LpBackend | None = None,
+    start_basis: LpBasis | None = None,
+    return_basis: bool = False,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
 
@@ -367,6 +433,12 @@ def solve_lp(
         :data:`DEFAULT_FEASIBILITY_TOL`, HiGHS's own.
     backend : LpBackend, optional
         Default :data:`DEFAULT_BACKEND` (``HIGHSPY`` when installed).
+    start_basis : LpBasis, optional
+        Start the simplex from this basis (e.g. the optimum of the same LP before rows were added,
+        their slacks basic): a warm start, same verdicts.  Ignored by the ``SCIPY`` backend, and when
+        its sizes do not match the LP.
+    return_basis : bool
+        Return the optimal basis in :attr:`LpSolution.basis` (``HIGHSPY`` backend).
 
     Returns
     -------
@@ -388,22 +460,29 @@ def solve_lp(
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
-    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
+    if which is LpBackend.HIGHSPY:
+        res = solve(
+            c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances, start_basis, return_basis
+        )
+    else:
+        res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
     if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
         # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
         # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
         # no verdict with presolve asks once without it
-        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances)
+        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances, None, return_basis)
         if again.status is not LpStatus.OTHER:
             return again
     return res
 
 
 __all__ = [
+    "BASIC",
     "CHECK_TOL",
     "DEFAULT_BACKEND",
     "DEFAULT_FEASIBILITY_TOL",
     "LpBackend",
+    "LpBasis",
     "LpMethod",
     "LpSolution",
     "LpStatus",
