@@ -133,9 +133,9 @@ def test_the_lift_stops_at_the_first_bound_that_proves(monkeypatch):
 
 
 def test_bench_move_at_1khz_with_all_three_limits_needs_no_wide_lp():
-    """The bench's 2 m move at 1 kHz under all three limits (issue 15): the next level's windows come
-    from each level's answer (the fewest feasible count), and the window LP at ``K - 1`` lifts to a
-    weak-duality proof by itself.  Taken from ``K - 1`` at each level, as before, the windows
+    """The bench's 2 m move at 1 kHz under all three limits (issue 15): the final rate's windows come
+    from the last coarse level's answer (the fewest feasible count), and the window LP at ``K - 1``
+    lifts to a weak-duality proof by itself.  Taken from that level's ``K - 1``, as before, the windows
     needed the wider fallback LP (1,048 free samples, 1.7 s of the 5.2 s plan) and the 250 Hz
     reference LP had 564 free samples.  Same count, same proof, exact and within every limit."""
     problem = rest_to_rest(WB, 1.0, 2.0)
