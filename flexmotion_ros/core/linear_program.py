@@ -46,6 +46,8 @@ if highspy is not None and not hasattr(highspy, "_Highs"):  # pragma: no cover -
 
 #: HiGHS's default primal and dual feasibility tolerances (what ``linprog`` leaves them at unless told).
 DEFAULT_FEASIBILITY_TOL = 1e-7
+#: HiGHS's own iteration limit (``kHighsIInf``, none): what ``iteration_limit=None`` sets.
+NO_ITERATION_LIMIT = 2_147_483_647
 #: linprog's post-solve feasibility check, reproduced for the direct backend: ``sqrt(1e-9) * 10``.
 CHECK_TOL = 10.0 * 1e-9**0.5
 
@@ -107,6 +109,30 @@ class LpSolution:
     ub_marginals: np.ndarray | None
     message: str
     backend: LpBackend
+    #: The optimal basis (OPTIMAL with ``return_basis`` on the highspy backend only).
+    basis: LpBasis | None = None
+    #: HiGHS's simplex iteration count (OPTIMAL on the highspy backend only; 0 from an optimal start basis).
+    iterations: int | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class LpBasis:
+    """A simplex basis of one LP: HiGHS's status of every column and of every row.
+
+    Attributes
+    ----------
+    col_status : ndarray of int, shape (n,)
+    row_status : ndarray of int, shape (m,)
+        The ``A_ub`` rows, then the ``A_eq`` rows.  Values are HiGHS's ``HighsBasisStatus``:
+        0 at the lower bound, 1 basic (:data:`BASIC`), 2 at the upper bound, 3 zero, 4 nonbasic.
+    """
+
+    col_status: np.ndarray
+    row_status: np.ndarray
+
+
+#: ``LpBasis`` status of a basic column or row (a new row's slack starts basic: the basis stays a basis).
+BASIC = 1
 
 
 def _csc_parts(A) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -182,10 +208,6 @@ if highspy is not None:
     }
 
 
-#: HiGHS's own default iteration limits (``kHighsIInf``): no limit.
-_NO_ITERATION_LIMIT = 2147483647
-
-
 def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     """``+-inf`` as HiGHS's infinity (itself ``inf`` in recent versions: nothing to do)."""
     if np.isinf(highspy.kHighsInf):
@@ -197,8 +219,24 @@ def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, limits, tolerances) -> LpSolution:
-    time_limit_s, iteration_limit = limits
+def _solve_highspy(
+    c,
+    A_ub,
+    b_ub,
+    A_eq,
+    b_eq,
+    lower,
+    upper,
+    method,
+    presolve,
+    time_limit_s,
+    tolerances,
+    *,
+    crossover=True,
+    iteration_limit=None,
+    start_basis=None,
+    want_basis=False,
+) -> LpSolution:
     n = c.size
     m_ub = 0 if b_ub is None else b_ub.size
     A = _stack_rows(A_ub, A_eq, n)
@@ -212,15 +250,16 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, li
     # solve is the clock now plus its own share
     limit = h.getRunTime() + float(time_limit_s) if time_limit_s is not None else np.inf
     iterations = (
-        _NO_ITERATION_LIMIT if iteration_limit is None else max(0, min(int(iteration_limit), _NO_ITERATION_LIMIT))
+        NO_ITERATION_LIMIT if iteration_limit is None else max(0, min(int(iteration_limit), NO_ITERATION_LIMIT))
     )
-    options = (method.value, "on" if presolve else "off", limit, primal, dual, iterations)
+    options = (method.value, "on" if presolve else "off", limit, primal, dual, "on" if crossover else "off", iterations)
     if options != getattr(_local, "options", None):  # set only what changed since this thread's last call
         h.setOptionValue("solver", options[0])
         h.setOptionValue("presolve", options[1])
         h.setOptionValue("time_limit", options[2])
         h.setOptionValue("primal_feasibility_tolerance", primal)
         h.setOptionValue("dual_feasibility_tolerance", dual)
+        h.setOptionValue("run_crossover", options[5])
         h.setOptionValue("simplex_iteration_limit", iterations)
         h.setOptionValue("ipm_iteration_limit", iterations)
         _local.options = options
@@ -254,6 +293,8 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, li
             message="HiGHS refused the model (a bound past its infinity, 1e20): read as infeasible, as linprog",
             backend=LpBackend.HIGHSPY,
         )
+    if start_basis is not None and start_basis.col_status.size == n and start_basis.row_status.size == row_lo.size:
+        _set_basis(h, start_basis)
     h.run()
     model_status = h.getModelStatus()
     status = _STATUS.get(model_status, LpStatus.OTHER)
@@ -274,6 +315,8 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, li
     row_value = np.array(sol.row_value)
     row_dual = np.array(sol.row_dual)
     objective = float(h.getObjectiveValue())
+    basis = _get_basis(h) if want_basis else None
+    iterations = int(h.getInfo().simplex_iteration_count)
     h.clearSolver()
     # linprog's check of an "optimal" point (its status 4 otherwise): bounds, inequality slack, equality residual
     ok = (
@@ -301,6 +344,28 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, li
         ub_marginals=row_dual[:m_ub],
         message=message,
         backend=LpBackend.HIGHSPY,
+        basis=basis,
+        iterations=iterations,
+    )
+
+
+def _set_basis(h, basis: LpBasis) -> None:
+    """Start HiGHS's simplex from ``basis`` (the model is passed; a basis it rejects is only not used)."""
+    status = highspy.HighsBasisStatus
+    b = highspy.HighsBasis()
+    b.col_status = [status(int(x)) for x in basis.col_status]
+    b.row_status = [status(int(x)) for x in basis.row_status]
+    b.valid = True
+    h.setBasis(b)
+
+
+def _get_basis(h) -> LpBasis | None:
+    b = h.getBasis()
+    if not b.valid:
+        return None
+    return LpBasis(
+        col_status=np.fromiter((int(x) for x in b.col_status), np.int8, len(b.col_status)),
+        row_status=np.fromiter((int(x) for x in b.row_status), np.int8, len(b.row_status)),
     )
 
 
@@ -308,13 +373,27 @@ _SCIPY_STATUS = {0: LpStatus.OPTIMAL, 1: LpStatus.TIME_LIMIT, 2: LpStatus.INFEAS
 _SCIPY_METHOD = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
 
 
-def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, limits, tolerances) -> LpSolution:
-    time_limit_s, iteration_limit = limits
-    options = {"presolve": bool(presolve)}
-    if time_limit_s is not None:
-        options["time_limit"] = float(time_limit_s)
+def _solve_scipy(
+    c,
+    A_ub,
+    b_ub,
+    A_eq,
+    b_eq,
+    lower,
+    upper,
+    method,
+    presolve,
+    time_limit_s,
+    tolerances,
+    *,
+    crossover=True,
+    iteration_limit=None,
+) -> LpSolution:
+    options = {"presolve": bool(presolve)}  # linprog always crosses over: ``crossover`` has no effect here
     if iteration_limit is not None:
         options["maxiter"] = max(0, int(iteration_limit))
+    if time_limit_s is not None:
+        options["time_limit"] = float(time_limit_s)
     for name, tol in zip(("primal_feasibility_tolerance", "dual_feasibility_tolerance"), tolerances):
         if tol is not None:
             options[name] = float(tol)
@@ -357,7 +436,10 @@ def solve_lp(
     primal_feasibility_tolerance: float | None = None,
     dual_feasibility_tolerance: float | None = None,
     backend: LpBackend | None = None,
+    crossover: bool = True,
     iteration_limit: int | None = None,
+    start_basis: LpBasis | None = None,
+    return_basis: bool = False,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
 
@@ -375,16 +457,25 @@ def solve_lp(
         HiGHS's presolve; if it leaves no verdict (``OTHER``), the LP is asked
         once more without it.
     time_limit_s : float, optional
-        Wall-time limit (s); reaching it gives ``TIME_LIMIT``.  The answer then depends on the
-        machine's load: a planner whose result must be reproducible uses ``iteration_limit``.
+        Wall-time limit (s); reaching it gives ``TIME_LIMIT``.
     primal_feasibility_tolerance, dual_feasibility_tolerance : float, optional
         HiGHS's tolerances (``linprog``'s options of the same names); default
         :data:`DEFAULT_FEASIBILITY_TOL`, HiGHS's own.
     backend : LpBackend, optional
         Default :data:`DEFAULT_BACKEND` (``HIGHSPY`` when installed).
+    crossover : bool
+        After ``IPM``, HiGHS's crossover to a basic solution (``highspy`` only: ``linprog``
+        always crosses over).  Without it the point and duals are the interior method's,
+        optimal to its tolerances but not a vertex.
     iteration_limit : int, optional
         A work budget: simplex (and interior-point) iterations; reaching it gives ``TIME_LIMIT``.
         Unlike ``time_limit_s`` it does not depend on the machine's load (the same LP, the same answer).
+    start_basis : LpBasis, optional
+        Start the simplex from this basis (e.g. the optimum of the same LP before rows were added,
+        their slacks basic): a warm start, same verdicts.  Ignored by the ``SCIPY`` backend, and when
+        its sizes do not match the LP.
+    return_basis : bool
+        Return the optimal basis in :attr:`LpSolution.basis` (``HIGHSPY`` backend).
 
     Returns
     -------
@@ -406,25 +497,31 @@ def solve_lp(
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
-    limits = (time_limit_s, iteration_limit)
-    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, limits, tolerances)
+    work = {"crossover": crossover, "iteration_limit": iteration_limit}
+    if which is LpBackend.HIGHSPY:
+        work.update(start_basis=start_basis, want_basis=return_basis)
+    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances, **work)
     if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
         # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
         # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
         # no verdict with presolve asks once without it
-        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, limits, tolerances)
+        work["start_basis"] = None
+        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances, **work)
         if again.status is not LpStatus.OTHER:
             return again
     return res
 
 
 __all__ = [
+    "BASIC",
     "CHECK_TOL",
     "DEFAULT_BACKEND",
     "DEFAULT_FEASIBILITY_TOL",
     "LpBackend",
+    "LpBasis",
     "LpMethod",
     "LpSolution",
     "LpStatus",
+    "NO_ITERATION_LIMIT",
     "solve_lp",
 ]

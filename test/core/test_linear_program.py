@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from scipy import sparse
 from scipy.optimize import linprog
 
-from flexmotion_ros.core.linear_program import LpBackend, LpMethod, LpStatus, solve_lp
+from flexmotion_ros.core.linear_program import BASIC, LpBackend, LpBasis, LpMethod, LpStatus, solve_lp
 
 ROOT = Path(__file__).resolve().parents[2]
 BACKENDS = [LpBackend.HIGHSPY, LpBackend.SCIPY]
@@ -283,3 +283,43 @@ def test_a_row_bound_past_highs_infinity_is_infeasible_as_linprog_says(backend):
     assert linprog(lp["cost"], A_ub=lp["A_ub"], b_ub=lp["b_ub"], bounds=(-1.0, 1.0), method="highs").status == 2
     res = solve_lp(**lp, backend=backend)
     assert res.status is LpStatus.INFEASIBLE, res.message
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n_new=st.integers(1, 12))
+def test_a_warm_start_from_the_basis_before_rows_were_added_gives_the_cold_answer(seed, n_new):
+    """Row generation (the limited planner's rows inside runs): the same LP with rows added, started
+    from the previous optimum's basis with the new rows' slacks basic.  The verdict, optimum and
+    duals are those of a cold solve and of ``linprog``; the dual simplex only repairs the new rows
+    (fewer iterations than cold), and from the optimal basis of the same LP it takes none."""
+    lp = random_lp(seed, 3, 20, 40)
+    first = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, return_basis=True)
+    assert first.status is LpStatus.OPTIMAL and first.basis is not None
+    assert first.basis.col_status.size == 40 and first.basis.row_status.size == 20 + 3
+    again = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, start_basis=first.basis)
+    assert again.iterations == 0 and again.objective == pytest.approx(first.objective, rel=1e-12, abs=1e-12)
+    # rows that cut the optimum off, placed as HiGHS's rows are: after the old inequalities, before the equalities
+    rng = np.random.default_rng(seed + 1)
+    A_new = rng.normal(size=(n_new, 40))
+    b_new = A_new @ first.x - rng.uniform(0.01, 0.5, n_new)
+    big = dict(lp, A_ub=np.vstack([lp["A_ub"], A_new]), b_ub=np.concatenate([lp["b_ub"], b_new]))
+    rows = np.concatenate([first.basis.row_status[:20], np.full(n_new, BASIC), first.basis.row_status[20:]])
+    start = LpBasis(col_status=first.basis.col_status, row_status=rows)
+    warm = solve_lp(**big, method=LpMethod.DUAL_SIMPLEX, start_basis=start)
+    cold = solve_lp(**big, method=LpMethod.DUAL_SIMPLEX)
+    ref = scipy_reference(big)
+    assert warm.status is cold.status
+    assert (ref.status == 0) == (warm.status is LpStatus.OPTIMAL)
+    if warm.status is LpStatus.OPTIMAL:
+        assert warm.objective == pytest.approx(cold.objective, rel=1e-9, abs=1e-9)
+        assert warm.objective == pytest.approx(ref.fun, rel=1e-9, abs=1e-9)
+        np.testing.assert_allclose(warm.ub_marginals, ref.ineqlin.marginals, atol=1e-7)
+        assert warm.iterations <= cold.iterations
+
+
+def test_a_start_basis_of_another_shape_is_not_used():
+    lp = random_lp(3, 2, 10, 20)
+    other = solve_lp(**random_lp(4, 2, 12, 20), return_basis=True).basis
+    res = solve_lp(**lp, start_basis=other)
+    assert res.status is LpStatus.OPTIMAL
+    assert res.objective == pytest.approx(scipy_reference(lp).fun, rel=1e-9, abs=1e-9)

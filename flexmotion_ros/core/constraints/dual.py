@@ -189,10 +189,20 @@ def lift(lp: LimitRows, sol: LPSolution) -> LPSolution:
                 direct.setdefault(k, []).append((col, sgn / lp.slew))
             if k >= 1:
                 direct.setdefault(k - 1, []).append((col, -sgn / lp.slew))
-    for mm in interior:  # c_m = u_max Gamma^T psi_m + direct_m = 0, scaled to a unit row
+    # c_m = u_max Gamma^T psi_m + direct_m = 0 at every interior sample, scaled to a unit row; the
+    # samples without direct terms (most of them) in one block (the rows are ordered by stamp below,
+    # so the matrix is the same as row by row)
+    has_direct = np.isin(interior, np.fromiter(direct, int, len(direct)))
+    plain = interior[~has_direct]
+    if plain.size:
+        nrm = float(np.linalg.norm(Gam)) or 1.0
+        eq.add_many(
+            plain[:, None] * n + np.arange(n), np.broadcast_to(Gam / nrm, (plain.size, n)), s=plain.astype(float)
+        )
+    for mm in interior[has_direct]:
         cols = [mm * n + f for f in range(n)]
         vals = [Gam[f] for f in range(n)]
-        for col, val in direct.get(int(mm), []):
+        for col, val in direct[int(mm)]:
             cols.append(col)
             vals.append(val)
         nrm = float(np.linalg.norm(vals)) or 1.0
@@ -235,6 +245,8 @@ def lift(lp: LimitRows, sol: LPSolution) -> LPSolution:
         bound, _ = dual_bound(lp, cand)
         if bound > best_bound:
             best, best_bound = cand, bound
+        if proves_infeasible(bound):
+            break  # what the caller asks: another round could only raise a bound that already proves
         neg = lam < -1e-12 * max(float(np.max(np.abs(lam), initial=0.0)), 1e-300)
         if not neg.any():
             break

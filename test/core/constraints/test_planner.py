@@ -233,11 +233,11 @@ def test_an_undecided_lp_is_never_read_as_infeasible(monkeypatch):
     real = limit_lp.LimitLP._solve_once
     seen = {}
 
-    def flaky(self, K, seg, mode, extra, t_fix=None):
+    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None):
         if self.dt == 1.0 / 50.0 and mode == "scaled" and not seen.get(K):
             seen[K] = True
             raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS Status 0: Not Set)")
-        return real(self, K, seg, mode, extra, t_fix)
+        return real(self, K, seg, mode, extra, t_fix, warm)
 
     monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", flaky)
     problem = rest_to_rest(WB, 1.0, 1.0)
