@@ -46,6 +46,8 @@ if highspy is not None and not hasattr(highspy, "_Highs"):  # pragma: no cover -
 
 #: HiGHS's default primal and dual feasibility tolerances (what ``linprog`` leaves them at unless told).
 DEFAULT_FEASIBILITY_TOL = 1e-7
+#: HiGHS's own iteration limit (none): what ``iteration_limit=None`` sets.
+NO_ITERATION_LIMIT = 2_147_483_647
 #: linprog's post-solve feasibility check, reproduced for the direct backend: ``sqrt(1e-9) * 10``.
 CHECK_TOL = 10.0 * 1e-9**0.5
 
@@ -193,7 +195,21 @@ def _infinite_to_highs(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
+def _solve_highspy(
+    c,
+    A_ub,
+    b_ub,
+    A_eq,
+    b_eq,
+    lower,
+    upper,
+    method,
+    presolve,
+    time_limit_s,
+    tolerances,
+    crossover=True,
+    iteration_limit=None,
+) -> LpSolution:
     n = c.size
     m_ub = 0 if b_ub is None else b_ub.size
     A = _stack_rows(A_ub, A_eq, n)
@@ -206,13 +222,17 @@ def _solve_highspy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, ti
     # (measured: a 0.05 s limit refused every solve after 0.05 s of solves in total): the limit of this
     # solve is the clock now plus its own share
     limit = h.getRunTime() + float(time_limit_s) if time_limit_s is not None else np.inf
-    options = (method.value, "on" if presolve else "off", limit, primal, dual)
+    iterations = NO_ITERATION_LIMIT if iteration_limit is None else int(iteration_limit)
+    options = (method.value, "on" if presolve else "off", limit, primal, dual, "on" if crossover else "off", iterations)
     if options != getattr(_local, "options", None):  # set only what changed since this thread's last call
         h.setOptionValue("solver", options[0])
         h.setOptionValue("presolve", options[1])
         h.setOptionValue("time_limit", options[2])
         h.setOptionValue("primal_feasibility_tolerance", primal)
         h.setOptionValue("dual_feasibility_tolerance", dual)
+        h.setOptionValue("run_crossover", options[5])
+        h.setOptionValue("simplex_iteration_limit", iterations)
+        h.setOptionValue("ipm_iteration_limit", iterations)
         _local.options = options
     passed = h.passModel(
         n,
@@ -298,8 +318,24 @@ _SCIPY_STATUS = {0: LpStatus.OPTIMAL, 1: LpStatus.TIME_LIMIT, 2: LpStatus.INFEAS
 _SCIPY_METHOD = {LpMethod.CHOOSE: "highs", LpMethod.DUAL_SIMPLEX: "highs-ds", LpMethod.IPM: "highs-ipm"}
 
 
-def _solve_scipy(c, A_ub, b_ub, A_eq, b_eq, lower, upper, method, presolve, time_limit_s, tolerances) -> LpSolution:
-    options = {"presolve": bool(presolve)}
+def _solve_scipy(
+    c,
+    A_ub,
+    b_ub,
+    A_eq,
+    b_eq,
+    lower,
+    upper,
+    method,
+    presolve,
+    time_limit_s,
+    tolerances,
+    crossover=True,
+    iteration_limit=None,
+) -> LpSolution:
+    options = {"presolve": bool(presolve)}  # linprog always crosses over: ``crossover`` has no effect here
+    if iteration_limit is not None:
+        options["maxiter"] = int(iteration_limit)
     if time_limit_s is not None:
         options["time_limit"] = float(time_limit_s)
     for name, tol in zip(("primal_feasibility_tolerance", "dual_feasibility_tolerance"), tolerances):
@@ -344,6 +380,8 @@ def solve_lp(
     primal_feasibility_tolerance: float | None = None,
     dual_feasibility_tolerance: float | None = None,
     backend: LpBackend | None = None,
+    crossover: bool = True,
+    iteration_limit: int | None = None,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
 
@@ -367,6 +405,13 @@ def solve_lp(
         :data:`DEFAULT_FEASIBILITY_TOL`, HiGHS's own.
     backend : LpBackend, optional
         Default :data:`DEFAULT_BACKEND` (``HIGHSPY`` when installed).
+    crossover : bool
+        After ``IPM``, HiGHS's crossover to a basic solution (``highspy`` only: ``linprog``
+        always crosses over).  Without it the point and duals are the interior method's,
+        optimal to its tolerances but not a vertex.
+    iteration_limit : int, optional
+        Most simplex (and interior-point) iterations: a work bound HiGHS honours inside a
+        solve, where the time limit may not be; reaching it gives ``TIME_LIMIT``.
 
     Returns
     -------
@@ -388,12 +433,13 @@ def solve_lp(
         raise ValueError("solve_lp: backend highspy requested but highspy is not installed (pip install highspy)")
     solve = _solve_highspy if which is LpBackend.HIGHSPY else _solve_scipy
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
-    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances)
+    work = {"crossover": crossover, "iteration_limit": iteration_limit}
+    res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances, **work)
     if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
         # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
         # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
         # no verdict with presolve asks once without it
-        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances)
+        again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances, **work)
         if again.status is not LpStatus.OTHER:
             return again
     return res
@@ -407,5 +453,6 @@ __all__ = [
     "LpMethod",
     "LpSolution",
     "LpStatus",
+    "NO_ITERATION_LIMIT",
     "solve_lp",
 ]
