@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GoalError, SolverError
-from ..linear_program import LpStatus, solve_lp
+from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..model.modal_model import check_positive
 from ..results import BangBangProfile, SampledProfile
@@ -50,6 +50,18 @@ MAX_FREE_SAMPLES = 20_000
 #: holds one command: an exact restriction of the sampled problem, so its optimum is a feasible
 #: sequence at the full rate; its dual guesses the windows).
 BLOCKED_SAMPLES = 4096
+#: Work bound of one fuel LP, in dual-simplex iterations times the LP's columns: HiGHS's
+#: iteration limit is this over the columns (a bound HiGHS honours inside a solve; it does not
+#: look at its time limit there).  Fuzz cases 0-272 at 100 Hz: every windowed or full LP took
+#: at most 1,435 iterations (3.5e6 column-iterations); case 73's blocked LP 10,091 over 8,126
+#: columns (8.2e7, 6.6 s).  A window LP of case 73 ran for minutes inside HiGHS when Newton
+#: started from another co-state.  About 0.3-0.5 ms an iteration over 16,000 columns here.
+LP_WORK_BUDGET = 2e8
+#: The fewest iterations a fuel LP is allowed, however many its columns.
+MIN_LP_ITERATIONS = 2000
+#: Most interior-point iterations of an LP solved by HiGHS's interior method here (a work bound
+#: HiGHS honours inside a solve).  The fuzz's seed and blocked LPs converge in 30-40.
+MAX_IPM_ITERATIONS = 200
 
 
 def fuel_of_samples(commands: np.ndarray, dt: float) -> float:
@@ -102,8 +114,16 @@ def _unit_rows(Gs: np.ndarray) -> np.ndarray:
     return np.where(rows > 0.0, rows, 1.0)
 
 
-def _solve_fuel_lp(G, w, dt, um, scale, levels, free, unit_rows: bool = False) -> _LPResult | None:
-    """``min fuel`` with samples outside ``free`` fixed at ``levels * u_max``; None if infeasible.
+def _iteration_limit(columns: int) -> int:
+    """HiGHS's iteration limit for a fuel LP of ``columns`` columns (:data:`LP_WORK_BUDGET`)."""
+    return max(MIN_LP_ITERATIONS, int(LP_WORK_BUDGET / max(columns, 1)))
+
+
+def _solve_fuel_lp(G, w, dt, um, scale, levels, free, unit_rows: bool = False) -> _LPResult | LpStatus:
+    """``min fuel`` with samples outside ``free`` fixed at ``levels * u_max``.
+
+    Returns the solution, or the status HiGHS ended with: ``INFEASIBLE`` (proved), or no
+    verdict (``TIME_LIMIT``: the work bound :data:`LP_WORK_BUDGET`; ``OTHER``: numerical).
 
     ``unit_rows``: each state row divided by its largest free entry (the work-bound path: a long
     move's position row was 1e-4 of the others, and HiGHS answered "not set").
@@ -116,17 +136,28 @@ def _solve_fuel_lp(G, w, dt, um, scale, levels, free, unit_rows: bool = False) -
     rows = _unit_rows(Gs[F]) if unit_rows else np.ones(G.shape[1])
     # u_f = u_max (p - q), 0 <= p, q <= 1
     A_eq = um * np.hstack([Gs[F].T, -Gs[F].T]) / rows[:, None]
-    res = solve_lp(cost=np.ones(2 * nF), A_eq=A_eq, b_eq=rhs / rows, lower=0.0, upper=1.0, **HIGHS_OPTIONS)
+    res = solve_lp(
+        cost=np.ones(2 * nF),
+        A_eq=A_eq,
+        b_eq=rhs / rows,
+        lower=0.0,
+        upper=1.0,
+        iteration_limit=_iteration_limit(2 * nF),
+        **HIGHS_OPTIONS,
+    )
     if res.status is not LpStatus.OPTIMAL:
-        return None
+        return res.status
     u = um * levels.astype(float)
     u[F] = um * (res.x[:nF] - res.x[nF:])
     nu = dt * um * np.asarray(res.eq_marginals, dtype=float) / (scale * rows)  # d fuel / d w
     return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nF)
 
 
-def _solve_blocked_lp(G, w, dt, um, scale, blocks: int) -> _LPResult | None:
-    """``min fuel`` with the samples held in ``blocks`` runs of equal commands (the last run shorter); None if infeasible."""
+def _solve_blocked_lp(G, w, dt, um, scale, blocks: int) -> _LPResult | LpStatus:
+    """``min fuel`` with the samples held in ``blocks`` runs of equal commands (the last run shorter).
+
+    Returns the solution, or the status HiGHS ended with (as :func:`_solve_fuel_lp`).
+    """
     K = G.shape[0]
     m = math.ceil(K / blocks)
     starts = np.arange(0, K, m)
@@ -141,12 +172,48 @@ def _solve_blocked_lp(G, w, dt, um, scale, blocks: int) -> _LPResult | None:
     # costs near 1 (the block's share of a full block): costs of m, the samples per block, left
     # HiGHS without a verdict ("Not Set", fuzz case 577) where these solve in 0.04 s
     cost = np.tile(sizes / m, 2)
-    res = solve_lp(cost=cost, A_eq=A_eq, b_eq=w / scale / rows, lower=0.0, upper=1.0, **HIGHS_OPTIONS)
+    lp = {"cost": cost, "A_eq": A_eq, "b_eq": w / scale / rows, "lower": 0.0, "upper": 1.0, **HIGHS_OPTIONS}
+    res = solve_lp(**lp, iteration_limit=_iteration_limit(2 * nB))
+    if res.status in (LpStatus.TIME_LIMIT, LpStatus.OTHER):
+        # no verdict from the dual simplex within its work bound (fuzz case 273: 4,072 blocks
+        # needed 63,605 iterations): the interior method, without crossover.  Its optimum is a
+        # feasible sequence (made exact below) and a guess of nu, never a proof
+        res = solve_lp(**lp, method=LpMethod.IPM, crossover=False, iteration_limit=MAX_IPM_ITERATIONS)
     if res.status is not LpStatus.OPTIMAL:
-        return None
+        return res.status
     u = np.repeat(um * (res.x[:nB] - res.x[nB:]), sizes.astype(int))
     nu = dt * um * m * np.asarray(res.eq_marginals, dtype=float) / (scale * rows)
     return _LPResult(u, fuel_of_samples(u, dt), _dual_bound(G, w, nu, dt, um), nu, nB, gap_closed=False)
+
+
+def seed_costate(system: ModalResponse, x0: np.ndarray, um: float, K: int, dt: float) -> np.ndarray | None:
+    """A co-state guess ``nu`` from the full sampled fuel LP (``K`` samples of ``dt`` s); None if none.
+
+    The dual simplex first, within :data:`LP_WORK_BUDGET`; without a verdict there, HiGHS's
+    interior-point method without crossover (only the duals are wanted), within
+    :data:`MAX_IPM_ITERATIONS`.  Unbounded, the dual simplex ran past 8 min CPU inside one HiGHS
+    call (fuzz case 273: 8,192 samples, a 1,058 s move, two modes near 20 rad/s; with the rows
+    in unit size it solved in 3 s, but then ran for minutes on cases 73 and 257) and took 18.6 s
+    on case 257; the interior method takes 0.04-0.3 s on each.
+
+    Returns
+    -------
+    ndarray or None
+        ``nu`` (unscaled state units: ``d fuel / d w``, N s per state unit); None if the LP
+        is infeasible (``T`` within a sample or so of ``T*``) or neither method gave an optimum
+        within its bound.  It is a guess, not a bound: nothing proved rests on it.
+    """
+    G = sample_vectors(system, K, dt)
+    w = -system.expm_x(K * dt, x0)
+    scale = state_scale(system, x0, um, K * dt)
+    Gs = G / scale
+    lp = {"cost": np.ones(2 * K), "A_eq": um * np.hstack([Gs.T, -Gs.T]), "b_eq": w / scale, "lower": 0.0, "upper": 1.0}
+    res = solve_lp(**lp, iteration_limit=_iteration_limit(2 * K), **HIGHS_OPTIONS)
+    if res.status in (LpStatus.TIME_LIMIT, LpStatus.OTHER):
+        res = solve_lp(**lp, method=LpMethod.IPM, crossover=False, iteration_limit=MAX_IPM_ITERATIONS, **HIGHS_OPTIONS)
+    if res.status is not LpStatus.OPTIMAL:
+        return None
+    return dt * um * np.asarray(res.eq_marginals, dtype=float) / scale
 
 
 def min_fuel_lp(
@@ -185,10 +252,10 @@ def min_fuel_lp(
     lower = -math.inf
     guesses = [] if nu_guess is None else [nu_guess]
     if K > max_free:  # the blocked LP: a feasible sequence at this rate, its dual another guess
-        best = _solve_blocked_lp(G, w, dt, um, scale, min(BLOCKED_SAMPLES, max_free))
-        if best is not None:
-            lower = best.bound
-            guesses.append(best.nu)
+        blocked = _solve_blocked_lp(G, w, dt, um, scale, min(BLOCKED_SAMPLES, max_free))
+        if isinstance(blocked, _LPResult):
+            best, lower = blocked, blocked.bound
+            guesses.append(blocked.nu)
     for guess in guesses:
         if result is not None:
             break
@@ -200,7 +267,7 @@ def min_fuel_lp(
             if np.count_nonzero(free) > max_free:
                 break
             sol = _solve_fuel_lp(G, w, dt, um, scale, levels, free, unit_rows=K > max_free)
-            if sol is not None:
+            if isinstance(sol, _LPResult):
                 lower = max(lower, sol.bound)
                 if best is None or sol.fuel < best.fuel:
                     best = sol
@@ -212,8 +279,14 @@ def min_fuel_lp(
     if result is None and best is not None and best.fuel - lower <= LP_GAP_RTOL * max(best.fuel, um * dt):
         result = best  # the blocked optimum proved optimal by the bound
     if result is None and K <= max_free:
-        result = _solve_fuel_lp(G, w, dt, um, scale, np.zeros(K), np.ones(K, dtype=bool))
-        if result is None:
+        full = _solve_fuel_lp(G, w, dt, um, scale, np.zeros(K), np.ones(K, dtype=bool))
+        if isinstance(full, _LPResult):
+            result = full
+        elif best is not None and full is not LpStatus.INFEASIBLE:
+            # no verdict within the work bound: the best feasible window, with the bound it has
+            result = best
+            result.gap_closed = False
+        else:
             return None
     elif result is None:
         if best is None:

@@ -42,7 +42,7 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..time_optimal.solver import plan_time_optimal
 from ..tolerances import FINAL_STATE_RTOL, T_STAR_RTOL
 from .dual import MAX_DUAL_EVALUATIONS, DualEval, dual_eval, dual_evaluation_budget
-from .lp import check_move_time, min_fuel_lp
+from .lp import check_move_time, seed_costate
 
 
 @dataclass
@@ -134,9 +134,9 @@ def _initial_costates(problem, system, x0, T, time_optimal):
     """
     wmax = float(np.max(system.wd)) if system.wd.size else 0.0
     N = min(MAX_SEED_SAMPLES, max(256, math.ceil(T * wmax / math.pi * SEED_SAMPLES_PER_HALF_PERIOD)))
-    sol = min_fuel_lp(system, x0, problem.u_max, N, T / N)
-    if sol is not None:
-        yield sol.nu
+    nu = seed_costate(system, x0, problem.u_max, N, T / N)
+    if nu is not None:
+        yield nu
     nu = -np.asarray(time_optimal.certificate.costate_final, dtype=float)
     tau = T - np.asarray(time_optimal.switch_times)
     _, dS = system.switching(nu, tau, derivative=True)

@@ -105,13 +105,13 @@ def test_newton_without_a_bang_off_bang_optimum_stops_early(monkeypatch):
 def test_the_seed_lp_stays_small(monkeypatch):
     """The LP that seeds Newton's co-state is capped: it asked for 61,000 samples (9 s of HiGHS, twice)."""
     sizes = []
-    original = fuel_module.min_fuel_lp
+    original = fuel_module.seed_costate
 
-    def recorded(system, x0, um, K, dt, nu_guess=None):
+    def recorded(system, x0, um, K, dt):
         sizes.append(K)
-        return original(system, x0, um, K, dt, nu_guess)
+        return original(system, x0, um, K, dt)
 
-    monkeypatch.setattr(fuel_module, "min_fuel_lp", recorded)
+    monkeypatch.setattr(fuel_module, "seed_costate", recorded)
     move = prepare(CASE_39)
     to = plan_time_optimal(move)
     T = 1.2 * to.duration
