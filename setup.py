@@ -22,7 +22,7 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     python_requires=">=3.10",
-    # highspy: HiGHS directly, without linprog's per-call overhead (core/linear_program.py; optional at
+    # highspy: HiGHS directly, without linprog's per-call overhead (core/linear_program/; optional at
     # run time: without it linprog solves the same LPs)
     install_requires=["setuptools", "numpy", "scipy", "pyyaml", "matplotlib", "highspy>=1.16,<2"],
     extras_require={
