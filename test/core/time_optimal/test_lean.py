@@ -223,3 +223,44 @@ def test_structure_from_samples_without_sign_changes_or_dips():
     assert roots.size == 0 and sign0 == -1.0
     roots, sign0 = lean.structure_from_samples(tau, np.zeros(11), 2)
     assert roots.size == 0 and sign0 == 1.0
+
+
+def _refine_runs(problem, monkeypatch):
+    """The plan, and each top-level lean Newton run: ``(switches in, evaluations, switches out, ok)``."""
+    runs = []
+    real = lean.refine
+
+    def recording(lm, roots, sign0, nuh, T, *args, **kwargs):
+        before = lm.evaluations
+        ok, tau, nuh_r, T_r, rn = real(lm, roots, sign0, nuh, T, *args, **kwargs)
+        runs.append((roots.size, lm.evaluations - before, tau.size, bool(ok)))
+        return ok, tau, nuh_r, T_r, rn
+
+    monkeypatch.setattr(time_optimal, "lean_refine", recording)
+    return plan_time_optimal(problem), runs
+
+
+def test_a_closing_blip_is_merged_instead_of_halved(monkeypatch):
+    """3 modes, 1 m: the guess has a pair that closes; Newton halved its gap 25 times (to 1.7e-12 T), now merges it."""
+    problem = bench_move(3, 1.0)
+    profile, runs = _refine_runs(problem, monkeypatch)
+    assert took_lean(profile) and profile.certificate.status is time_optimal.CertificateStatus.OPTIMAL
+    assert runs[0][0] == 9 and runs[0][2] == 7 and runs[0][3], runs
+    assert runs[0][1] <= 15, runs  # was 26 evaluations
+    monkeypatch.undo()
+    assert_same_optimum(profile, general_solver(problem, monkeypatch))
+
+
+def test_a_pair_that_full_steps_carry_past_itself_is_merged(monkeypatch):
+    """3 modes, 5 s: the certificate's zeros give 11 switches, a pair of which full steps kept crossing.
+
+    Halved steps crawled 44 evaluations and failed (then the structure edit's 9-switch run converged in 4);
+    merged after :data:`~.switch_newton.MERGE_AFTER` blocked steps, the same run converges.
+    """
+    problem = bench_move(3, 5.0)
+    profile, runs = _refine_runs(problem, monkeypatch)
+    assert took_lean(profile) and profile.certificate.status is time_optimal.CertificateStatus.OPTIMAL
+    assert all(ok for *_, ok in runs), runs
+    assert sum(e for _, e, _, _ in runs) <= 25, runs  # was 5 + 44 + 4
+    monkeypatch.undo()
+    assert_same_optimum(profile, general_solver(problem, monkeypatch))
