@@ -73,8 +73,15 @@ def _stop_time(b0: float, c: float, v: float, u: float) -> float:
     return -math.log1p(v * c / a) / c  # = log((a/c) / (v + a/c)) / c, without cancellation
 
 
-def rigid_min_time(model: ModalModel, u_max: float, p: float, v: float, fixed_position: bool) -> float:
+def rigid_min_time(
+    model: ModalModel, u_max: float, p: float, v: float, fixed_position: bool, stop_atol: float = 0.0
+) -> float:
     """Minimum time to bring the rigid body from ``(p, v)`` to rest (at 0 if ``fixed_position``).
+
+    ``stop_atol``: a one-bang stop that ends within this distance of 0 counts as landing on it
+    (besides :data:`STOP_RTOL`): the minimum time to come to rest within that distance of the target,
+    for a plan whose own final position is that far off (near the switching curve the exact minimum
+    grows as the square root of the offset).
 
     At most one switch.  For each order (``sigma u_max`` then ``-sigma u_max``) the
     second phase is the stop from the velocity reached, so the final position is a
@@ -103,7 +110,7 @@ def rigid_min_time(model: ModalModel, u_max: float, p: float, v: float, fixed_po
         # the second phase can stop the body once s * v1 >= 0
         t_lo = 0.0 if s * v >= 0.0 else _stop_time(b0, c, v, u1)
         f_lo = end(t_lo)[0]
-        if t_lo > 0.0 and abs(f_lo) <= STOP_RTOL * max(abs(p), abs(v) * t_lo, a * t_lo * t_lo):
+        if t_lo > 0.0 and abs(f_lo) <= max(STOP_RTOL * max(abs(p), abs(v) * t_lo, a * t_lo * t_lo), stop_atol):
             # one full bang against v stops the body on the target (within rounding): past t_lo the
             # final position is flat (quadratic in t1 - t_lo), so a root search there would add
             # ~sqrt(rounding) to the time; the closed-form stop is the candidate

@@ -26,6 +26,7 @@ from flexmotion_ros.core import (
     rest_to_rest,
     state_to_rest,
 )
+from flexmotion_ros.core.time_optimal.rigid_body import rigid_profile
 
 from .test_solver_properties import (
     SETTINGS,
@@ -86,6 +87,41 @@ def test_one_bang_stop_on_the_target_is_the_reference_minimum():
     t_stop = math.log1p(-model.c * abs(v) / a) / -model.c  # full braking against v, closed form
     assert rigid_min_time(model, u_max, p, v, True) == pytest.approx(t_stop, rel=1e-14)
     profile = plan_and_check(problem)  # includes T* >= rigid minimum (1 - 1e-9)
+    assert profile.duration == pytest.approx(t_stop, rel=1e-12)
+
+
+#: A replan along a 3-mode plan's last (braking) arc, 6.8e-14 m off the rigid switching curve
+#: (hypothesis, ``test_warm_and_cold_give_the_same_certified_optimum``, seed 11).
+ON_CURVE_REPLAN = state_to_rest(
+    ModalModel(
+        b0=-9.224441671487169, c=-1.0, omega=(1.0, 2.848990930279117, 5.413082767530322),
+        zeta=(0.0, 0.0, 0.0), b=(0.8092988905170001, -0.210697162316109, -1.0),
+    ),
+    3.414831501603354,
+    [-29.88082617878343, -11.206641871565942, -0.12702517721080933, 0.8282288805505517,
+     0.03129024337684237, -0.1925601855226323, 0.12547951048015005, -0.6289897072460245],
+    -31.49991400449708,
+)  # fmt: skip
+
+
+def test_the_rigid_bound_of_a_start_on_the_viscous_switching_curve_is_the_braking_time():
+    """One braking arc lands within rounding of the target: the rigid optimum is that arc.
+
+    The viscous solver's scan bracketed no root there (rounding put it at t < 0) and answered
+    with a two-arc move of 0.574 s: a "lower bound" above the 0.304 s optimum, which the
+    certificate's gap test would have taken for proof.  No move to rest is shorter than
+    braking at full force, and the reference minimum is at most sqrt(rounding) longer.
+    """
+    problem = ON_CURVE_REPLAN
+    model, u_max = problem.model, problem.u_max
+    p, v = (float(z) for z in problem.shifted_initial()[:2])
+    a = abs(model.b0) * u_max
+    t_stop = math.log1p(-model.c * abs(v) / a) / -model.c  # full braking against v, closed form
+    rigid = rigid_profile(model, u_max, problem.shifted_initial(), True)
+    assert rigid.duration == pytest.approx(t_stop, rel=1e-14)
+    assert rigid.switch_times.size == 0
+    assert rigid.duration <= rigid_min_time(model, u_max, p, v, True)  # a lower bound (the exact one: 3e-7 more)
+    profile = plan_and_check(problem)  # includes T* >= rigid minimum within the plan's own final error
     assert profile.duration == pytest.approx(t_stop, rel=1e-12)
 
 
