@@ -419,6 +419,14 @@ def test_motion_to_rest(fast_path, problem):
         0.0,
     )
 )
+@example(  # the reference's Brent stalled splitting a cell of the independent gap (local seed 21)
+    state_to_rest(
+        ModalModel(b0=1.0, c=0.0, omega=(0.6257018453332291,), zeta=(0.0,), b=(1.0,)),
+        1.0,
+        [0.0, -1.2670906551997538, -2.554260153201943, 0.0],
+        0.0,
+    )
+)
 def test_state_to_rest(fast_path, problem):
     plan_and_check(problem, fast_path)
 
