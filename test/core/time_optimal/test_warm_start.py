@@ -98,9 +98,18 @@ END_BLIP_WITHIN_GAP = _replan_case(
 )  # fmt: skip
 
 
+#: Seed 28: the same on a 1-mode model (viscous rigid body), 0.219 s, the rigid reference 4e-7 longer.
+ON_THE_LAST_ARC_1_MODE = _replan_case(
+    ModalModel(b0=-1.0002302850208247, c=-1.0002302850208247, omega=(1.0,), zeta=(0.0,), b=(0.16138905714341362,)),
+    1.000002302587744, 1.00023258813882, 4.16277777654685,
+    [0.9743719334190301, 0.24501113579289868, 0.003858037068701527, -0.03507717701369373],
+)  # fmt: skip
+
+
 @settings(max_examples=30, **SETTINGS)
 @given(replans())
 @example(ON_THE_LAST_ARC)
+@example(ON_THE_LAST_ARC_1_MODE)
 @example(END_BLIP_WITHIN_GAP)
 def test_warm_and_cold_give_the_same_certified_optimum(case):
     nominal, t, problem = case
