@@ -248,14 +248,24 @@ def _without_blip(problem, system, sh, roots, sign0, T, t0, T_low, assemble) -> 
     return better
 
 
-def refusal_reason(T_low: float) -> str:
-    """What a refusal of the full solver can still say: the proved bound, what plans such a move.
+def refusal_reason(T_low: float, fastest_period: float = 0.0) -> str:
+    """What a refusal of the full solver can still say: why such a move is hard, the proved bound, what plans it.
 
     ``T_low``: the rigid body's minimum time (s), a proved lower bound on the optimum.  (No estimate
     of the optimum: the smoothed problems' duration can be a factor 2-20 below it on exactly these moves.)
+    ``fastest_period``: the period (s) of the model's fastest mode (0: none).  A move whose rigid time is
+    shorter than that is short against every mode: the bang-bang input rings them all like an impulse,
+    and its optimum is set by bringing them to rest, not by the travel (6 of the 7 refusals of the
+    10,000 fuzz cases of seed 15: rigid times of 0.11-0.39 s, optima found near 1 s of 15 or more switches).
     """
+    short = (
+        f"the move is short against every mode (its rigid-body time is below the {fastest_period:.3g} s period of "
+        "the fastest): its optimum is set by bringing all of them to rest, not by the travel; "
+        if 0.0 < T_low < fastest_period
+        else ""
+    )
     return (
-        f"the minimum time is at least {T_low:.6g} s (the rigid body's); nothing is returned: plan the move at a "
-        "sample rate with method fixed_time (an arrival time of your choosing, by linear programs, without the "
+        f"{short}the minimum time is at least {T_low:.6g} s (the rigid body's); nothing is returned: plan the move "
+        "at a sample rate with method fixed_time (an arrival time of your choosing, by linear programs, without the "
         "continuous optimum; one too early is refused with the peak command it needs), or model fewer modes"
     )

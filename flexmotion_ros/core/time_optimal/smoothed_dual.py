@@ -27,6 +27,9 @@ SMOOTH_LONG_DENSITY = 0.25
 #: (:func:`graded_grid`), so a damped long move's warm start samples the fast
 #: modes only while they ring, not over the whole move.  Inf: never (the uniform rule).
 SMOOTH_DECAY = 36.0
+#: ... and so does the rigid body's own ``e^{c tau}`` (``c < 0``) past ``tau = SMOOTH_DECAY / |c|``
+#: (False: its spacing ``1 / (8 |c|)`` over the whole move, as before issue 15's second tail pass).
+RIGID_DECAY = True
 #: Newton on the smoothed problem stops when the predicted decrease is below
 #: this (relative): a warm start whose duration is wanted to 1e-3 needs no
 #: more (1e-14 took twice the iterations for the same guesses).
@@ -185,23 +188,33 @@ def graded_grid(system, T: float, per_half_period: float) -> np.ndarray | None:
     ``tau = SMOOTH_DECAY / (zeta_i omega_i)`` it is below rounding of its
     start and the rule's spacing follows the next slower mode (a rigid tail:
     the rigid body's own time scale).  ``per_half_period`` points per half
-    period of the fastest mode alive in each stretch.  None for a system
-    without ``sig`` (decay rates) or if no mode decays within ``T``.
+    period of the fastest mode alive in each stretch.  The rigid body's own
+    terms ``e^{c tau}`` (``c < 0``: viscous damping) get 8 points per time
+    constant ``1 / |c|`` while they last, up to ``tau = SMOOTH_DECAY / |c|``:
+    past it the rigid part of ``S`` is a constant to rounding, integrated
+    exactly on any grid.  (Spaced ``1 / (8 |c|)`` over the whole move, the
+    rigid tail of a long cruise was most of the grid: fuzz case 1476, a
+    2,285 s move with ``c = -0.89``: 27,536 points, every mode rung out
+    after 1,200 s.)  None for a system without ``sig`` (decay rates) or if
+    nothing decays within ``T``.
     """
     sig, wd = getattr(system, "sig", None), getattr(system, "wd", None)
     if sig is None or wd is None or not np.size(wd) or not math.isfinite(SMOOTH_DECAY):
         return None
     with np.errstate(divide="ignore"):
         life = np.where(sig > 0.0, SMOOTH_DECAY / np.maximum(sig, 1e-300), math.inf)
-    ends = np.unique(np.concatenate([life[life < T], [T]]))
+    c = float(getattr(system, "c", 0.0))
+    # the life of e^{c tau}; c > 0 grows: the whole move
+    rigid_life = SMOOTH_DECAY / -c if c < 0.0 and RIGID_DECAY else math.inf
+    ends = np.unique(np.concatenate([life[life < T], [rigid_life] if rigid_life < T else [], [T]]))
     if ends.size == 1:
         return None
-    c = abs(float(getattr(system, "c", 0.0)))
     pieces, a = [], 0.0
     for b in ends:
         alive = wd[life > a]
         w = float(np.max(alive)) if alive.size else 0.0
-        n = max(MIN_GRID_POINTS // 2, math.ceil((b - a) * w / math.pi * per_half_period), math.ceil(8.0 * c * (b - a)))
+        rigid = 8.0 * abs(c) * (min(b, rigid_life) - a) if a < rigid_life else 0.0
+        n = max(MIN_GRID_POINTS // 2, math.ceil((b - a) * w / math.pi * per_half_period), math.ceil(rigid))
         pieces.append(np.linspace(a, b, n + 1)[:-1])
         a = b
     pieces.append(np.array([T]))

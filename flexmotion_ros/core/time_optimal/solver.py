@@ -212,16 +212,20 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
         if profile is None:
             profile = structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, _assemble)
         if profile is None:
+            w_fast = fastest_frequency(system)
+            fastest_period = 2.0 * math.pi / w_fast if w_fast > 0.0 else 0.0
             if math.isinf(residual):  # the work budget ran out: say so, not only the miss it left
                 raise SolverError(
                     f"time-optimal planner did not converge within its work budget ({sh.evaluations} exact "
                     f"co-state evaluations, {model.n_modes} modes): no switch structure it found reaches the "
                     f"target (the last one: {roots.size} switches over {T:.4g} s, relative final-state error "
                     f"{getattr(miss, 'relative_error', math.nan):.1e}, tolerance {FINAL_STATE_RTOL:.0e}); "
-                    f"{refusal_reason(T_low)}"
+                    f"{refusal_reason(T_low, fastest_period)}"
                 ) from miss
             # the structures found miss the target: the same facts, after what was missed
-            refusal = SolverError(f"{str(miss).removesuffix('; nothing is returned')}; {refusal_reason(T_low)}")
+            refusal = SolverError(
+                f"{str(miss).removesuffix('; nothing is returned')}; {refusal_reason(T_low, fastest_period)}"
+            )
             refusal.relative_error = getattr(miss, "relative_error", math.nan)
             raise refusal from miss
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove

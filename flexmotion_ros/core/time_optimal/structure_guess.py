@@ -53,6 +53,11 @@ MERGE_RTOL = 1e-3
 #: ``bench/planner_latency.py``) otherwise cost a failed certificate, whose zeros then gave the same
 #: structure without the pair.
 COINCIDENT_RTOL = 1e-12
+#: Two converged extremals with the same first sign and number of switches, every switch and ``T``
+#: within this (relative to ``T``) of the other's, are the same candidate: one rejected by the check
+#: is not checked again (Newton runs from different structures often converge to it: fuzz case 1446,
+#: 7 modes, certified the same 15-switch extremal 8 times, 6 ms each, from the one-dip alternatives).
+SAME_EXTREMAL_RTOL = 1e-8
 #: Sampling density of the structure guess (times the planners' grid).
 GRID_DENSITY = 4.0
 #: Guess on :func:`~.switching.root_grid` (graded by the modes still ringing; False: the uniform grid).
@@ -137,6 +142,7 @@ def newton_from_guess(
     # Depth-first: each structure's edit first (the chain of edits, at most MAX_TRIES deep), then
     # the one-dip alternatives (:func:`one_dip_structures`) of the extremals on the way, deepest dip first.
     pending = [(roots, sign0, nuh, T, 0)]
+    rejected: list[tuple[float, np.ndarray, float]] = []  # extremals the check rejected: (sign0, tau, T)
     runs = 0
     while pending and runs < MAX_TRIES + MAX_ALTERNATIVES:
         roots, sign0, nuh, T, depth = pending.pop()
@@ -152,10 +158,13 @@ def newton_from_guess(
             continue
         if ok:
             tau = drop_coincident(tau, T_r)
+            if any(_same_extremal(tau, sign0, T_r, *seen) for seen in rejected):
+                continue  # rejected already, its edits and alternatives queued then: nothing new here
             signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
             accepted, zeros, zsign0 = check(nuh_r, T_r, tau, signs)
             if accepted is not None:
                 return accepted
+            rejected.append((sign0, tau, T_r))
             if zeros is None:
                 continue
             if switching is not None:
@@ -322,6 +331,14 @@ def guess_structure(sh: Shooting, nuh: np.ndarray, T: float) -> tuple[np.ndarray
 def _same_structure(a: np.ndarray, sa: float, b: np.ndarray, sb: float, T: float) -> bool:
     """Whether two switch structures are the same one (see :data:`SAME_RTOL`)."""
     return sa == sb and a.size == b.size and bool(np.all(np.abs(a - b) <= SAME_RTOL * T))
+
+
+def _same_extremal(tau: np.ndarray, sign0: float, T: float, sign0_b: float, tau_b: np.ndarray, T_b: float) -> bool:
+    """Whether two converged extremals are the same candidate (see :data:`SAME_EXTREMAL_RTOL`)."""
+    tol = SAME_EXTREMAL_RTOL * T
+    return (
+        sign0 == sign0_b and tau.size == tau_b.size and abs(T - T_b) <= tol and bool(np.all(np.abs(tau - tau_b) <= tol))
+    )
 
 
 def drop_coincident(tau: np.ndarray, T: float) -> np.ndarray:

@@ -21,6 +21,7 @@ from flexmotion_ros.core.config import PlannerConfig
 from flexmotion_ros.core.errors import SolverError
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.model.boundary import state_to_rest
+from flexmotion_ros.core.time_optimal.fallbacks import refusal_reason
 from flexmotion_ros.core.time_optimal.rigid_body import rigid_time
 from flexmotion_ros.core.time_optimal.solver import plan_time_optimal
 
@@ -52,6 +53,8 @@ def test_a_refusal_after_the_work_budget_names_the_bound_and_a_method_that_plans
     except SolverError as exc:
         text = str(exc)
         assert "work budget" in text
+        # why: a 0.11 s rigid move against modes of 0.37-3.6 s periods (on 4a85f36 the refusal did not say)
+        assert "short against every mode" in text and "0.374 s period" in text
         assert f"at least {T_rigid:.6g} s" in text  # the proved lower bound
         assert "fixed_time" in text  # what plans it
         return
@@ -98,9 +101,18 @@ def test_a_refusal_for_a_missed_target_names_the_bound_and_a_method_that_plans()
     except SolverError as exc:
         text = str(exc)
         assert "missed the target" in text
+        assert "short against every mode" in text  # 0.109 s rigid, the fastest mode's period 0.332 s
         assert f"at least {T_rigid:.6g} s" in text
         assert "fixed_time" in text
         assert text.endswith("or model fewer modes")  # said once, at the end
         return
     assert profile.certified, profile.certificate.message
     assert profile.duration >= T_rigid * (1.0 - 1e-12)
+
+
+def test_only_a_move_short_against_every_mode_is_called_so():
+    # fuzz case 3894 (8 modes, moving start): a 213 s rigid move, refused after the work budget for other reasons
+    assert "short against every mode" not in refusal_reason(213.4, 0.115)
+    assert "short against every mode" not in refusal_reason(0.11, 0.0)  # a rigid body: no mode
+    text = refusal_reason(0.1107, 0.3740)
+    assert text.startswith("the move is short against every mode") and text.endswith("or model fewer modes")
