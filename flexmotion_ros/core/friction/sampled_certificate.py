@@ -42,7 +42,8 @@ import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix, vstack
 
 from ..linear_program import LpMethod, LpStatus, solve_lp
-from .sampled_lp import FrictionLP, lp_iteration_limit
+from .lp_work import lp_iteration_limit
+from .sampled_lp import FrictionLP
 
 #: The move's peak may exceed the proved lower bound on the least peak by this (relative): the returned
 #: commands are the LP's, corrected (least norm) to land exactly, which moves the peak by up to ~2e-5 of

@@ -57,9 +57,10 @@ from .certificate import FrictionCertificate, FrictionStatus
 from .contact import FrictionSystem
 from .continuation import continue_in_friction
 from .lower_bound import rigid_friction_time
+from .lp_work import EffortSpent
 from .pattern_search import fastest_samples, pattern_template
 from .profile import FrictionProfile, better, sampled_profile, try_assemble
-from .sampled_lp import EffortSpent, FrictionLP
+from .sampled_lp import FrictionLP
 from .structure import extremal_from_samples, has_stick_arcs
 
 
@@ -254,7 +255,7 @@ def plan_time_optimal_friction(
 #: Samples of the coarse sampled moves the structure is read from, coarsest first; the finer ones are
 #: tried when a coarser one has no sequence (or, up to ``STRUCTURE_FINER`` times, gave no extremal).
 STRUCTURE_SAMPLES = (64, 192, 576, 1728)
-#: Effort budget (:func:`~.sampled_lp.lp_effort`, squared LP rows plus columns, summed) of the structure search's
+#: Effort budget (:func:`~.lp_work.lp_effort`, squared LP rows plus columns, summed) of the structure search's
 #: LPs: past it the search stops with what it has.  Seed-18 fuzz cases 0-299 spent at most 4.9e8 (case 166,
 #: 1.6 s CPU); case 691 spent about 1e10 (a minute) for an 800 s move.
 STRUCTURE_EFFORT = 1_000_000_000
