@@ -179,7 +179,7 @@ def plan_time_optimal_friction(
                 dt_c = T_ref / K_c
                 if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
                     dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
-                lp = FrictionLP(problem, F, dt_c, effort)
+                lp = FrictionLP(problem, F, dt_c, effort, monotone_rows=True)
                 sol = fastest_samples(lp, warm or template, K_c, K_max=4 * K_c)
                 if sol is None and warm is not None:  # the coarser move's pattern did not carry over
                     sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
@@ -196,7 +196,7 @@ def plan_time_optimal_friction(
                 dt_c = T_first / K_c
                 if rate_hz:
                     dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
-                lp = FrictionLP(problem, F, dt_c, effort)
+                lp = FrictionLP(problem, F, dt_c, effort, monotone_rows=True)
                 sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True)
             if sol is None:
                 # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
