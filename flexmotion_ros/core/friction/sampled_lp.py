@@ -207,6 +207,10 @@ class FrictionLP:
                 # 1e-9, commands within 1e-6); with reversals, or thousands of samples (the ZOH's full LPs:
                 # case 22 went from 0.3 to 5.6 s), it was slower (more rows violated, more rounds)
                 sol, decided = self._sign_rows(K, s, np.ones(K, dtype=bool), np.zeros(K), MONOTONE_ROUNDS)
+            elif self.monotone_rows and not signs and 1 < K <= MONOTONE_ROWS_MAX and np.all(s != 0.0):
+                # no sign conditions and no stuck sample: the chain's velocities are free, the LP is its arrival
+                # rows (n_I rows, not n_I + K + 1)
+                sol, decided = self._sign_rows(K, s, np.ones(K, dtype=bool), np.zeros(K), 1, signs=False)
             if not decided:
                 sol = self._solve(K, s, signs, None)
             if sol is not None:
@@ -293,11 +297,18 @@ class FrictionLP:
         return self._sign_rows(K, s, free, sigma)[0]
 
     def _sign_rows(
-        self, K: int, s: np.ndarray, free: np.ndarray, sigma: np.ndarray, rounds: int = SIGN_ROUNDS
+        self,
+        K: int,
+        s: np.ndarray,
+        free: np.ndarray,
+        sigma: np.ndarray,
+        rounds: int = SIGN_ROUNDS,
+        signs: bool = True,
     ) -> tuple[FrictionSolution | None, bool]:
         """:meth:`solve_windowed` (at most ``rounds`` rounds) and whether it decided: True with the solution,
         or with None where an LP of the rounds had no optimum (its rows are a subset of the full LP's, so
-        neither has one); False where the rounds ran out or an LP reached its iteration limit."""
+        neither has one); False where the rounds ran out or an LP reached its iteration limit.
+        ``signs=False``: no sign rows at all (the friction of ``s`` a known disturbance only)."""
         G, Hf, free_resp, pw = self.kdata(K)
         s = np.asarray(s, float)
         sigma = np.asarray(sigma, float)
@@ -314,7 +325,7 @@ class FrictionLP:
         held_u[Xi] = sigma[Xi]
         c = self.velocities(held_u, np.zeros(K)) - self.x0[1] * pw  # response to the held z alone
         change = np.flatnonzero(s[1:] != s[:-1]) + 1
-        want: set[int] = set(change.tolist())
+        want: set[int] = set(change.tolist()) if signs else set()
         cost = np.zeros(nF + 1)
         cost[-1] = -1.0
         lower = np.append(np.full(nF, -1.0), 0.0)
@@ -357,11 +368,15 @@ class FrictionLP:
             t = 1.0 / float(res.x[-1])
             u = sigma * t
             u[Fi] = res.x[:nF] * t
+            if not signs:
+                self.feasible_solves += 1
+                return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w), True
             v = self.velocities(u, s)
             scale = max(float(np.max(np.abs(v))), 1e-300)
             depth = np.minimum(s[:-1] * v[1:K], s[1:] * v[1:K])
             bad = set((np.flatnonzero(depth < -1e-12 * scale) + 1).tolist()) - want
             if not bad:
+                self.feasible_solves += 1  # as the chain form counts its solutions
                 return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w), True
             local = [j for j in bad if depth[j - 1] <= depth[max(j - 2, 0)] and depth[j - 1] <= depth[min(j, K - 2)]]
             want |= set(local[:192]) | set(sorted(bad, key=lambda j: depth[j - 1])[:64])

@@ -237,7 +237,7 @@ def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violat
     """Before: every signed LP of the structure search was the chain form (2 K + 2 columns, about one simplex
     iteration per row: 2-4 ms at 190 samples).  Now a monotone pattern's LP is first solved with the arrival
     rows alone (K + 1 columns); where its velocities keep their sign that is the signed LP's optimum, the same
-    peak and commands as the chain form's."""
+    peak and commands as the chain form's.  The LP without sign conditions is its arrival rows alone."""
     from flexmotion_ros.core.friction import sampled_lp as mod
 
     # seed-18 fuzz case 88 (two modes, c = 0, F = 0.22 u_max): a monotone move (188 samples of 0.13 s)
@@ -273,3 +273,10 @@ def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violat
         assert np.max(np.abs(a.u - b.u)) <= 1e-6 * b.t
         v = fast.velocities(a.u, a.pattern)
         assert np.all(direction * v[1:K] >= -1e-12 * np.max(np.abs(v)))
+        # without sign conditions (the pattern's friction a known force only) the LP is its arrival rows too
+        columns.clear()
+        c = fast.solve(K, np.full(K, direction), signs=False)
+        d = chain.solve(K, np.full(K, direction), signs=False)
+        assert columns == [K + 1, 2 * K + 2]
+        assert abs(c.t - d.t) <= 1e-9 * d.t
+        assert fast.feasible_solves == chain.feasible_solves == 2  # counted alike (the planner reads it)
