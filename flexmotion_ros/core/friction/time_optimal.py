@@ -174,7 +174,7 @@ def plan_time_optimal_friction(
     effort, spent = [STRUCTURE_EFFORT], None
     try:
         for K_c in STRUCTURE_SAMPLES:
-            sol, stalled = None, False
+            sol, stalled, held = None, False, False
             for _ in range(2):  # a move much slower than the frictionless one: coarser samples
                 dt_c = T_ref / K_c
                 if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
@@ -188,8 +188,16 @@ def plan_time_optimal_friction(
                 stalled = stalled or lp.stalled
                 if sol is not None or not lp.feasible_solves or lp.stalled:
                     break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
+                if T_ref == T_first:
+                    # before coarser samples, a move held by friction on the way at these (see below): where
+                    # both exist the held one was 15-23 x shorter (seed-18 cases 3, 27, 39, 99, 127, 133: e.g.
+                    # 1.40 s instead of 32.9 s; the coarser sliding move starts at 4 x the samples' time)
+                    lp = FrictionLP(problem, F, dt_c, effort, monotone_rows=True)
+                    sol, held = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True), True
+                    if sol is not None:
+                        break
                 T_ref *= 4.0
-            if sol is None and not stalled:
+            if sol is None and not stalled and not held:
                 # no sliding pattern reaches rest (every sample moving forward or back): a move that rests on
                 # the way, the body held by friction (|u| <= F) while the modes are steered, never moving back
                 # (not where the samples are too long to bring the modes to rest: finer ones are tried first)
