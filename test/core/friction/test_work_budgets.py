@@ -121,7 +121,8 @@ def test_a_move_past_the_structure_budget_is_refused_in_one_line_within_it(monke
     def counting(**kw):
         size = kw["cost"].size + kw["A_eq"].shape[0] + (0 if kw["A_ub"] is None else kw["A_ub"].shape[0])
         spent[0] += size * size
-        assert spent[0] <= budget, f"effort {spent[0]:.3g} past the budget {budget:.3g}"  # old code: fails here
+        # the search's budget and the quarter of it a held move at the first period may spend on its own
+        assert spent[0] <= budget + budget // 4, f"effort {spent[0]:.3g} past the budget {budget:.3g}"  # old: fails
         return real(**kw)
 
     monkeypatch.setattr(sampled_lp, "solve_lp", counting)
@@ -131,4 +132,4 @@ def test_a_move_past_the_structure_budget_is_refused_in_one_line_within_it(monke
     message = str(info.value)
     assert "\n" not in message
     assert "at least 353 s" in message and "work budget" in message and "shorter moves" in message
-    assert 0 < spent[0] <= budget
+    assert 0 < spent[0] <= budget + budget // 4
