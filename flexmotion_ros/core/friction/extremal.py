@@ -130,10 +130,14 @@ class Extremal:
         r, J, reversals = out
         rn = float(np.max(np.abs(r)))
         nz, nI, L = self.L + 1, self.I.size, self.L
+        sw = slice(nI, nI + L)  # the switching rows
+        block = None  # their columns in (t_j, T) by differences, or updated along the steps (Broyden)
+        fresh = False
+        refreshed = 0  # differences taken again after an updated block's step failed (at most once a solve)
         for _ in range(max_iter):
             if rn <= NEWTON_TOL:
                 return True, y, rn
-            if reversals and L:
+            if reversals and L and block is None:
                 # one-sided differences (one evaluation per column, not two): an O(h) error of ~1e-7 in
                 # these columns slows Newton's last steps only slightly, and the residual, not the
                 # Jacobian, decides convergence; the evaluations are what a failing solve burns
@@ -149,7 +153,10 @@ class Extremal:
                     rp = self.residual(yp)
                     if rp is None:
                         return False, y, rn
-                    J[nI : nI + L, j] = (rp - r)[nI : nI + L] / (yp[j] - y[j])
+                    J[sw, j] = (rp - r)[sw] / (yp[j] - y[j])
+                block, fresh = J[sw, :nz].copy(), True
+            elif reversals and L:
+                J[sw, :nz] = block  # the differences of an earlier iterate, updated by the steps since
             step, *_ = np.linalg.lstsq(J, -r, rcond=None)
             tt = 1.0
             for _ in range(halvings):
@@ -160,7 +167,24 @@ class Extremal:
                         break
                 tt *= 0.5
             else:
+                if block is not None and not fresh and not refreshed:
+                    # an updated block may mislead: differences again before giving up (once: a solve that
+                    # fails again leaves the continuation's budget to smaller steps of the force)
+                    block, refreshed = None, 1
+                    continue
                 return rn <= 1e3 * NEWTON_TOL, y, rn
+            if block is not None and oc[2]:
+                # Broyden's update of the difference columns: two exact runs tell how the switching rows
+                # moved along the step; the analytic columns (in lambda) are the new iterate's.  Differences
+                # at every iterate were most of a solve's runs (L + 1 of L + 2 per step)
+                d = yc - y
+                dt_ = d[:nz]
+                moved = (oc[0] - r)[sw] - oc[1][sw, nz:] @ d[nz:]
+                nn = float(dt_ @ dt_)
+                block = block + np.outer(moved - block @ dt_, dt_) / nn if nn > 0.0 else None
+                fresh = False
+            else:
+                block = None
             y = yc
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))

@@ -33,34 +33,28 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import lfilter
-from scipy.sparse import coo_matrix, csc_array
+from scipy.sparse import coo_matrix
 
 from ..linear_program import LpMethod, LpStatus, solve_lp
 from ..model.boundary import MoveProblem
 from ..sampled.lp_tools import least_norm_correction
 from ..tolerances import HIGHS_OPTIONS
+from .chain_form import chain_matrix
 from .contact import ClosedForm
-
-#: Simplex iterations a friction LP may take, per row and column (plus :data:`LP_ITERATION_FLOOR`): a work
-#: budget, not a wall-clock one, so the planner's answer does not depend on the machine's load (a 1 s time
-#: limit refused LPs at load 25 that plan in 0.6 s CPU: fuzz cases 82, 824 of seed 18).  The dual simplex
-#: can stall on a degenerate windowed LP; such an LP counts as "no solution" (wider windows, or another
-#: count, are tried), never as a verdict.  Seed-18 fuzz cases 0-99 at 100 Hz (2,850 LPs): at most 1.17
-#: iterations per row and column, median 0.47 (2026-12-05): ten is a wide margin.
-LP_ITERATIONS_PER_SIZE = 10
-#: The smallest iteration budget of a friction LP.
-LP_ITERATION_FLOOR = 1000
-
-
-def lp_iteration_limit(n_columns: int, n_rows: int) -> int:
-    """The simplex iteration budget of a friction LP with ``n_columns`` variables and ``n_rows`` rows."""
-    return LP_ITERATION_FLOOR + LP_ITERATIONS_PER_SIZE * (int(n_columns) + int(n_rows))
-
+from .lp_work import EffortSpent, lp_effort, lp_iteration_limit
 
 #: HiGHS's presolve on the friction LPs.  Off: these LPs have nothing for it to remove (every sign condition
 #: is a bound, the arrival rows are dense) and it cost a third of the solve: the 324 LPs of seed-18 fuzz
 #: cases 0, 1, 3, 4, 6, 8, 10, 13 took 0.91-1.08 s CPU without it, 1.38 s with it, same optima (2026-12-05).
 PRESOLVE = False
+#: Most samples of a monotone pattern's LP solved by sign rows generated (``monotone_rows``).
+MONOTONE_ROWS_MAX = 600
+#: Rounds of sign-row generation of a monotone pattern's LP before the chain form is asked instead: the
+#: structure search's feasible monotone LPs took one (seed-18 cases 0, 9, 13, 88, 93: 50 LPs; the first round
+#: has the arrival rows alone, a few hundred microseconds); the infeasible ones of a move that must rest on
+#: the way took 4-8 rounds of growing dense rows (case 1: 175 ms at 256 samples, 5 ms in chain form), and
+#: two rounds made such moves 20 % slower (cases 0-149).
+MONOTONE_ROUNDS = 1
 #: Rounds of sign-row generation in a windowed LP.
 SIGN_ROUNDS = 8
 #: Upper bound on ``mu = 1 / t`` (a move that is already at rest needs no command at all).
@@ -105,10 +99,28 @@ class FrictionLP:
         Coulomb force on the rigid body (N).
     dt : float
         Sample period (s).
+    effort_left : list of int, optional
+        Shared effort budget of the LPs (see :attr:`effort_left`).
+    monotone_rows : bool
+        Signed LPs of monotone patterns by generated sign rows (the structure search's counts).
     """
 
-    def __init__(self, problem: MoveProblem, F: float, dt: float) -> None:
+    def __init__(
+        self,
+        problem: MoveProblem,
+        F: float,
+        dt: float,
+        effort_left: list[int] | None = None,
+        *,
+        monotone_rows: bool = False,
+    ) -> None:
         self.problem = problem
+        #: Solve the signed LP of a monotone pattern of at most :data:`MONOTONE_ROWS_MAX` samples by sign rows
+        #: generated where violated (see :meth:`solve`).
+        self.monotone_rows = monotone_rows
+        #: Effort (:func:`lp_effort`) the LPs may still spend, shared by the caller's LPs (``[n]``, decremented
+        #: in place); an LP past it raises :class:`EffortSpent` instead of being solved.  None: no limit.
+        self.effort_left = effort_left
         self.F = F
         self.dt = dt
         model = problem.model
@@ -187,7 +199,20 @@ class FrictionLP:
         s = np.asarray(s, float)
         key = (K, s.tobytes(), bool(signs))
         if key not in self._solved:
-            sol = self._solve(K, s, signs, None)
+            sol, decided = None, False
+            if self.monotone_rows and signs and 1 < K <= MONOTONE_ROWS_MAX and s[0] != 0.0 and np.all(s == s[0]):
+                # a monotone pattern: its sign rows generated where violated (the LP of the arrival rows and a
+                # few velocity rows, rounds until none is violated) is 2-3 x faster than the chain form at the
+                # structure search's counts, the same optimum (seed-18 cases 88, 93, 13: 30 LPs, peaks within
+                # 1e-9, commands within 1e-6); with reversals, or thousands of samples (the ZOH's full LPs:
+                # case 22 went from 0.3 to 5.6 s), it was slower (more rows violated, more rounds)
+                sol, decided = self._sign_rows(K, s, np.ones(K, dtype=bool), np.zeros(K), MONOTONE_ROUNDS)
+            elif self.monotone_rows and not signs and 1 < K <= MONOTONE_ROWS_MAX and np.all(s != 0.0):
+                # no sign conditions and no stuck sample: the chain's velocities are free, the LP is its arrival
+                # rows (n_I rows, not n_I + K + 1)
+                sol, decided = self._sign_rows(K, s, np.ones(K, dtype=bool), np.zeros(K), 1, signs=False)
+            if not decided:
+                sol = self._solve(K, s, signs, None)
             if sol is not None:
                 for a in (sol.u, sol.pattern):
                     a.flags.writeable = False
@@ -206,7 +231,7 @@ class FrictionLP:
         moves = (~stuck).astype(float)  # a stuck sample does not drive the rigid body
         iz, iy, imu = 0, K, 2 * K + 1  # columns: z_0..z_{K-1}, y_0..y_K, mu
         nv = 2 * K + 2
-        A_eq = _chain_matrix(G, w, self.x0[1], self.ev, -self.gv * moves, self.F * self.fv * s)
+        A_eq = chain_matrix(G, w, self.x0[1], self.ev, -self.gv * moves, self.F * self.fv * s)
         A_ub = b_ub = None
         if stuck.any():  # held by friction: |u_k| <= F (a hair inside, so rounding cannot make it slip)
             ks = np.flatnonzero(stuck)
@@ -235,8 +260,13 @@ class FrictionLP:
             lo[iy + K] = hi[iy + K] = 0.0
         cost = np.zeros(nv)
         cost[imu] = -1.0
+        size = nv + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
+        if self.effort_left is not None:
+            if lp_effort(size) > self.effort_left[0]:
+                raise EffortSpent(f"an LP of {K} samples is past the effort budget")
+            self.effort_left[0] -= lp_effort(size)
         self.solves += 1
-        self.work += nv + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
+        self.work += size
         res = solve_lp(
             cost=cost,
             A_ub=A_ub,
@@ -264,6 +294,21 @@ class FrictionLP:
 
         Small LPs (the free samples and ``mu``) whatever ``K``: the 1 kHz plans use this.
         """
+        return self._sign_rows(K, s, free, sigma)[0]
+
+    def _sign_rows(
+        self,
+        K: int,
+        s: np.ndarray,
+        free: np.ndarray,
+        sigma: np.ndarray,
+        rounds: int = SIGN_ROUNDS,
+        signs: bool = True,
+    ) -> tuple[FrictionSolution | None, bool]:
+        """:meth:`solve_windowed` (at most ``rounds`` rounds) and whether it decided: True with the solution,
+        or with None where an LP of the rounds had no optimum (its rows are a subset of the full LP's, so
+        neither has one); False where the rounds ran out or an LP reached its iteration limit.
+        ``signs=False``: no sign rows at all (the friction of ``s`` a known disturbance only)."""
         G, Hf, free_resp, pw = self.kdata(K)
         s = np.asarray(s, float)
         sigma = np.asarray(sigma, float)
@@ -280,14 +325,14 @@ class FrictionLP:
         held_u[Xi] = sigma[Xi]
         c = self.velocities(held_u, np.zeros(K)) - self.x0[1] * pw  # response to the held z alone
         change = np.flatnonzero(s[1:] != s[:-1]) + 1
-        want: set[int] = set(change.tolist())
+        want: set[int] = set(change.tolist()) if signs else set()
         cost = np.zeros(nF + 1)
         cost[-1] = -1.0
         lower = np.append(np.full(nF, -1.0), 0.0)
         upper = np.append(np.ones(nF), MU_MAX)
         A_ub = b_ub = None
         res = None
-        for _ in range(SIGN_ROUNDS):
+        for _ in range(rounds):
             js = np.array(sorted(want), int)
             if js.size:
                 lag = js[:, None] - 1 - Fi[None, :]
@@ -298,8 +343,13 @@ class FrictionLP:
                     blocks.append(np.column_stack([-sd[:, None] * D, -sd * a[js]]))
                     rhs.append(sd * c[js])
                 A_ub, b_ub = np.vstack(blocks), np.concatenate(rhs)
+            size = nF + 1 + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
+            if self.effort_left is not None:
+                if lp_effort(size) > self.effort_left[0]:
+                    raise EffortSpent(f"an LP of {K} samples is past the effort budget")
+                self.effort_left[0] -= lp_effort(size)
             self.solves += 1
-            self.work += nF + 1 + A_eq.shape[0] + (0 if A_ub is None else A_ub.shape[0])
+            self.work += size
             res = solve_lp(
                 cost=cost,
                 A_ub=A_ub,
@@ -314,19 +364,23 @@ class FrictionLP:
                 **HIGHS_OPTIONS,
             )
             if res.status is not LpStatus.OPTIMAL or res.x[-1] <= 0.0:
-                return None
+                return None, res.status in (LpStatus.INFEASIBLE, LpStatus.UNBOUNDED, LpStatus.OPTIMAL)
             t = 1.0 / float(res.x[-1])
             u = sigma * t
             u[Fi] = res.x[:nF] * t
+            if not signs:
+                self.feasible_solves += 1
+                return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w), True
             v = self.velocities(u, s)
             scale = max(float(np.max(np.abs(v))), 1e-300)
             depth = np.minimum(s[:-1] * v[1:K], s[1:] * v[1:K])
             bad = set((np.flatnonzero(depth < -1e-12 * scale) + 1).tolist()) - want
             if not bad:
-                return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w)
+                self.feasible_solves += 1  # as the chain form counts its solutions
+                return FrictionSolution(K=K, u=u, t=t, pattern=s.copy(), G=G, w=w), True
             local = [j for j in bad if depth[j - 1] <= depth[max(j - 2, 0)] and depth[j - 1] <= depth[min(j, K - 2)]]
             want |= set(local[:192]) | set(sorted(bad, key=lambda j: depth[j - 1])[:64])
-        return None
+        return None, False
 
     def exact_commands(self, sol: FrictionSolution) -> np.ndarray | None:
         """``sol.u`` corrected (least-norm, within ``u_max``) so that the arrival holds to rounding AND the
@@ -355,38 +409,3 @@ class FrictionLP:
             if out[k] == 0.0:
                 out[k] = out[k - 1] if k else (s[0] if s.size else 1.0)
         return out
-
-
-def _chain_matrix(G: np.ndarray, w: np.ndarray, v0: float, ev: float, drive: np.ndarray, fric: np.ndarray) -> csc_array:
-    """The equality rows of :meth:`FrictionLP.solve` built column by column in compressed columns (what
-    HiGHS takes; the same matrix as the triplets ``coo -> csr -> csc`` it was assembled from before, in
-    a fraction of the time: the conversions were a third of a structure LP's cost).
-
-    Rows: ``nI`` arrival rows ``G^T z - mu w = 0``, then ``y_0 - v0 mu = 0``, then the chain
-    ``y_{k+1} - ev y_k + drive_k z_k + fric_k mu = 0``.  Columns: ``z_0..z_{K-1}``, ``y_0..y_K``, ``mu``.
-    Explicit zeros are kept (the solver's input drops them).
-    """
-    K, nI = G.shape
-    chain0 = nI + 1  # row of the chain equation of sample 0
-    # z_k: the arrival rows, then its chain row
-    z_rows = np.empty((K, nI + 1), dtype=np.int32)
-    z_rows[:, :nI] = np.arange(nI, dtype=np.int32)
-    z_rows[:, nI] = chain0 + np.arange(K, dtype=np.int32)
-    z_vals = np.column_stack([G, drive])
-    # y_j: its own chain row (j - 1, coefficient 1; y_0: the initial row) and the next one (-ev; none for y_K)
-    y_rows = np.empty((K + 1, 2), dtype=np.int32)
-    y_rows[:, 0] = np.arange(nI, nI + K + 1, dtype=np.int32)
-    y_rows[:K, 1] = chain0 + np.arange(K, dtype=np.int32)
-    y_vals = np.empty((K + 1, 2))
-    y_vals[:, 0] = 1.0
-    y_vals[:K, 1] = -ev
-    # mu: every row
-    mu_rows = np.arange(nI + 1 + K, dtype=np.int32)
-    mu_vals = np.concatenate([-w, [-v0], fric])
-    indices = np.concatenate([z_rows.ravel(), y_rows.ravel()[:-1], mu_rows])
-    data = np.concatenate([z_vals.ravel(), y_vals.ravel()[:-1], mu_vals])
-    indptr = np.empty(2 * K + 3, dtype=np.int32)
-    indptr[0] = 0
-    counts = np.concatenate([np.full(K, nI + 1), np.full(K, 2), [1], [mu_rows.size]])
-    np.cumsum(counts, out=indptr[1:])
-    return csc_array((data, indices, indptr), shape=(nI + 1 + K, 2 * K + 2))

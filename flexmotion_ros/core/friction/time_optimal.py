@@ -49,7 +49,7 @@ import time
 
 import numpy as np
 
-from ..errors import InputError, SolverError
+from ..errors import GoalError, InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import BangBangProfile
 from ..time_optimal.solver import plan_time_optimal
@@ -57,6 +57,7 @@ from .certificate import FrictionCertificate, FrictionStatus
 from .contact import FrictionSystem
 from .continuation import continue_in_friction
 from .lower_bound import rigid_friction_time
+from .lp_work import EffortSpent
 from .pattern_search import fastest_samples, pattern_template
 from .profile import FrictionProfile, better, sampled_profile, try_assemble
 from .sampled_lp import FrictionLP
@@ -167,59 +168,83 @@ def plan_time_optimal_friction(
     rigid0 = rigid_friction_time(model, problem.u_max, 0.0, problem.x0, problem.target)
     T_first = base.duration * (lb / rigid0 if lb and rigid0 else 1.0)
     T_ref, sampled, finer, warm = T_first, None, STRUCTURE_FINER, None
-    for K_c in STRUCTURE_SAMPLES:
-        sol, stalled = None, False
-        for _ in range(2):  # a move much slower than the frictionless one: coarser samples
-            dt_c = T_ref / K_c
-            if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
-                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
-            lp = FrictionLP(problem, F, dt_c)
-            sol = fastest_samples(lp, warm or template, K_c, K_max=4 * K_c)
-            if sol is None and warm is not None:  # the coarser move's pattern did not carry over
-                sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
-            if sol is None and reverses:  # the frictionless move's reversals may not suit: a monotone move
-                sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
-            stalled = stalled or lp.stalled
-            if sol is not None or not lp.feasible_solves or lp.stalled:
-                break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
-            T_ref *= 4.0
-        if sol is None and not stalled:
-            # no sliding pattern reaches rest (every sample moving forward or back): a move that rests on
-            # the way, the body held by friction (|u| <= F) while the modes are steered, never moving back
-            # (not where the samples are too long to bring the modes to rest: finer ones are tried first)
-            dt_c = T_first / K_c
-            if rate_hz:
-                dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
-            lp = FrictionLP(problem, F, dt_c)
-            sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True)
-        if sol is None:
-            # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
-            # a long damped move with fast modes): finer samples over the same time
-            T_ref = T_first
-            continue
-        if has_stick_arcs(sol.u, F, sol.t) or np.any(sol.pattern == 0.0):
-            # the body rests for a while (|u| <= F holds it while the modes are steered): no bang-bang
-            # extremal of the sliding system describes that; the sampled move is the answer if it passes
-            # the exact check, else finer samples are tried (an exact bang-bang move found before wins)
-            if best is not None:
-                sampled = (lp, sol)
+    # the structure LPs share an effort budget (work, not wall time): a long move whose structure needs
+    # fine samples (fuzz case 691 of seed 18: 353 s at least, a 23 rad/s mode, no sequence at 0.63 s samples)
+    # solved LPs of 3,800 samples, 2 s each, for a minute
+    effort, spent = [STRUCTURE_EFFORT], None
+    try:
+        for K_c in STRUCTURE_SAMPLES:
+            sol, stalled, held = None, False, False
+            for _ in range(2):  # a move much slower than the frictionless one: coarser samples
+                dt_c = T_ref / K_c
+                if rate_hz:  # a whole number of command periods: the sampled move is then a command sequence too
+                    dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+                lp = FrictionLP(problem, F, dt_c, effort, monotone_rows=True)
+                sol = fastest_samples(lp, warm or template, K_c, K_max=4 * K_c)
+                if sol is None and warm is not None:  # the coarser move's pattern did not carry over
+                    sol = fastest_samples(lp, template, K_c, K_max=4 * K_c)
+                if sol is None and reverses:  # the frictionless move's reversals may not suit: a monotone move
+                    sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c)
+                stalled = stalled or lp.stalled
+                if sol is not None or not lp.feasible_solves or lp.stalled:
+                    break  # found; or no LP had a solution, or more samples stopped helping: finer ones may
+                if T_ref == T_first:
+                    # before coarser samples, a move held by friction on the way at these (see below): where
+                    # both exist the held one was 15-23 x shorter (seed-18 cases 3, 27, 39, 99, 127, 133: e.g.
+                    # 1.40 s instead of 32.9 s; the coarser sliding move starts at 4 x the samples' time)
+                    # its own effort budget (a quarter of the search's): where it finds nothing the coarser
+                    # samples still have theirs (case 686 of seed 18, a 24.9 s move, was refused without)
+                    held_lp = FrictionLP(problem, F, dt_c, [STRUCTURE_EFFORT // 4], monotone_rows=True)
+                    held = True
+                    try:
+                        sol = fastest_samples(held_lp, monotone, K_c, K_max=4 * K_c, stick=True)
+                    except EffortSpent:
+                        sol = None
+                    if sol is not None and sampled_profile(held_lp, sol, base, lb, steps, t0) is not None:
+                        lp = held_lp
+                        break  # (its exact check passed; the coarser samples otherwise: case 686's held
+                        # moves failed theirs at every period, and the finer ones spent the budget)
+                    sol = None
+                T_ref *= 4.0
+            if sol is None and not stalled and not held:
+                # no sliding pattern reaches rest (every sample moving forward or back): a move that rests on
+                # the way, the body held by friction (|u| <= F) while the modes are steered, never moving back
+                # (not where the samples are too long to bring the modes to rest: finer ones are tried first)
+                dt_c = T_first / K_c
+                if rate_hz:
+                    dt_c = max(1, round(dt_c * rate_hz)) / rate_hz
+                lp = FrictionLP(problem, F, dt_c, effort, monotone_rows=True)
+                sol = fastest_samples(lp, monotone, K_c, K_max=4 * K_c, stick=True)
+            if sol is None:
+                # no sequence at this resolution (samples too long for the modes to be brought to rest, e.g.
+                # a long damped move with fast modes): finer samples over the same time
+                T_ref = T_first
+                continue
+            if has_stick_arcs(sol.u, F, sol.t) or np.any(sol.pattern == 0.0):
+                # the body rests for a while (|u| <= F holds it while the modes are steered): no bang-bang
+                # extremal of the sliding system describes that; the sampled move is the answer if it passes
+                # the exact check, else finer samples are tried (an exact bang-bang move found before wins)
+                if best is not None:
+                    sampled = (lp, sol)
+                    break
+                prof = sampled_profile(lp, sol, base, lb, steps, t0)
+                if prof is not None:
+                    return prof
+                T_ref = T_first
+                continue
+            sampled = (lp, sol)
+            T_ref = sol.K * lp.dt
+            warm = pattern_template(sol.pattern)  # the finer search starts from this move's pattern
+            got = extremal_from_samples(problem, sol.u, lp.dt, F, scale, sol.t, [STRUCTURE_EVALS])
+            if got is not None:
+                best = better(best, try_assemble(*got, base, lb, steps, t0))
+                if best is not None and best.certified:
+                    return best
+            finer -= 1
+            if finer < 0:
                 break
-            prof = sampled_profile(lp, sol, base, lb, steps, t0)
-            if prof is not None:
-                return prof
-            T_ref = T_first
-            continue
-        sampled = (lp, sol)
-        T_ref = sol.K * lp.dt
-        warm = pattern_template(sol.pattern)  # the finer search starts from this move's pattern
-        got = extremal_from_samples(problem, sol.u, lp.dt, F, scale, sol.t, [STRUCTURE_EVALS])
-        if got is not None:
-            best = better(best, try_assemble(*got, base, lb, steps, t0))
-            if best is not None and best.certified:
-                return best
-        finer -= 1
-        if finer < 0:
-            break
+    except EffortSpent as exc:
+        spent = exc  # what was found so far stands
     if best is not None:
         alt = sampled_profile(*sampled, base, lb, steps, t0) if sampled is not None else None
         if alt is not None and alt.duration < best.duration:
@@ -230,6 +255,14 @@ def plan_time_optimal_friction(
         prof = sampled_profile(*sampled, base, lb, steps, t0)
         if prof is not None:
             return prof
+    if spent is not None:  # nothing found within the budget: refused, naming why (one line)
+        raise GoalError(
+            "goal",
+            f"a move of at least {lb or T_first:.3g} s (proved) under {F:g} N of friction whose modes (up to "
+            f"{max(model.omega, default=0.0):.3g} rad/s) need samples of {lp.dt:.2g} s or shorter to be brought "
+            f"to rest: its sampled structure (over {round(T_first / lp.dt):,} samples) is past the friction "
+            f"planner's work budget; plan it as shorter moves",
+        )
     raise SolverError(
         "friction planner: neither the continuation from the frictionless optimum nor the structure of a "
         "sampled move gave an exact move; nothing is returned"
@@ -239,6 +272,10 @@ def plan_time_optimal_friction(
 #: Samples of the coarse sampled moves the structure is read from, coarsest first; the finer ones are
 #: tried when a coarser one has no sequence (or, up to ``STRUCTURE_FINER`` times, gave no extremal).
 STRUCTURE_SAMPLES = (64, 192, 576, 1728)
+#: Effort budget (:func:`~.lp_work.lp_effort`, squared LP rows plus columns, summed) of the structure search's
+#: LPs: past it the search stops with what it has.  Seed-18 fuzz cases 0-299 spent at most 4.9e8 (case 166,
+#: 1.6 s CPU); case 691 spent about 1e10 (a minute) for an 800 s move.
+STRUCTURE_EFFORT = 1_000_000_000
 #: Finer sampled moves tried after the first one found (its structure gave no certified extremal).
 STRUCTURE_FINER = 1
 #: Residual evaluations (exact friction runs) Newton may spend on the structure of one sampled move

@@ -179,3 +179,52 @@ def test_a_repeated_structure_lp_is_answered_without_highs(monkeypatch):
     assert not first.u.flags.writeable and not first.pattern.flags.writeable
     fresh = FrictionLP(problem, F, 0.05).solve(40, s, signs=False)
     assert np.array_equal(fresh.u, first.u) and fresh.t == first.t
+
+
+def fuzz_117():
+    """Seed-18 fuzz case 117 (4 modes, c = 0, F = 0.26 u_max): the continuation needs many damped steps."""
+    m = ModalModel(
+        b0=1.4446872725040838,
+        c=0.0,
+        omega=(1.265170336310518, 4.7016699726202535, 9.260280994610827, 17.73702223785588),
+        zeta=(0.07442385067926148, 0.22553285724464242, 0.29718495907667375, 0.04319857153245638),
+        b=(0.6742888237519163, -0.4543616465987259, 0.8894249925294883, -1.0820562071819722),
+    )
+    u_max = 1.9015541706141468
+    return MoveProblem(m, u_max, [0.0] * m.n_states, -2.785122576367948), 0.25931094338372146 * u_max
+
+
+def test_newton_updates_the_differenced_columns_instead_of_differencing_every_step(monkeypatch):
+    """Before: every Newton step through a reversal differenced the switching rows in all L + 1 switch times
+    (20 of the 26 exact runs of case 2's continuation).  Now they are differenced once and then updated along
+    the steps (Broyden), differenced again only where an updated Jacobian's step fails: 10 runs in all."""
+    problem, F = fuzz_2()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    runs = []
+    real_run = FrictionSystem.run
+
+    def counting(self, *args, **kwargs):
+        runs.append(1)
+        return real_run(self, *args, **kwargs)
+
+    monkeypatch.setattr(FrictionSystem, "run", counting)
+    out = continue_in_friction(problem, base, F, scale)
+    assert out is not None
+    assert len(runs) <= 12, len(runs)
+
+
+def test_the_updated_newton_certifies_an_extremal_the_differenced_one_missed():
+    """Case 117: before, the continuation's Newton stalled (its step through the differenced Jacobian failed
+    its line search) and the plan was the sampled move of 4.02 s, certified only for its pattern.  Now the
+    continuation converges: a certified extremal of 4.00 s, checked by the exact friction simulation."""
+    problem, F = fuzz_117()
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.certified
+    assert prof.duration < 4.0
+    xf = problem.model.rest_state(problem.target)
+    x = simulate_coulomb(problem.model, problem.x0, prof.input(), F, [prof.duration, 2.0 * prof.duration + 1.0])
+    full = simulate_coulomb(problem.model, problem.x0, prof.input(), F, np.linspace(0.0, prof.duration, 200))
+    scale = np.max(np.abs(full - xf), axis=0) + 1e-300
+    assert np.max(np.abs(x - xf) / scale) < 1e-8
+    assert prof.lower_bound is None or prof.duration >= prof.lower_bound

@@ -231,3 +231,52 @@ def test_a_period_too_fine_for_the_move_is_left_after_one_relaxed_lp():
     sol = fastest_samples(lp, lambda tau: np.full(np.shape(tau), direction), 64, K_max=256)
     assert sol is None
     assert lp.solves <= 8
+
+
+def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violated(monkeypatch):
+    """Before: every signed LP of the structure search was the chain form (2 K + 2 columns, about one simplex
+    iteration per row: 2-4 ms at 190 samples).  Now a monotone pattern's LP is first solved with the arrival
+    rows alone (K + 1 columns); where its velocities keep their sign that is the signed LP's optimum, the same
+    peak and commands as the chain form's.  The LP without sign conditions is its arrival rows alone."""
+    from flexmotion_ros.core.friction import sampled_lp as mod
+
+    # seed-18 fuzz case 88 (two modes, c = 0, F = 0.22 u_max): a monotone move (188 samples of 0.13 s)
+    m = ModalModel(
+        b0=0.1545043630137464,
+        c=0.0,
+        omega=(1.1467813684326982, 47.6835289244803),
+        zeta=(0.05789717439445904, 0.2803840841994864),
+        b=(1.282615117912985, -1.1313217744408233),
+    )
+    u_max = 0.8662531907123768
+    problem, F = MoveProblem(m, u_max, [0.0] * m.n_states, 18.125361827457088), 0.22264954899363443 * u_max
+    direction = 1.0
+    columns = []
+    real = mod.solve_lp
+
+    def counting(**kw):
+        columns.append(kw["cost"].size)
+        return real(**kw)
+
+    monkeypatch.setattr(mod, "solve_lp", counting)
+    for K, dt in ((64, 0.38), (66, 0.38), (188, 0.13), (192, 0.13)):  # the structure search's LPs of this move
+        fast = FrictionLP(problem, F, dt)
+        fast.monotone_rows = True  # as the structure search makes them (set after, so the old code runs too)
+        chain = FrictionLP(problem, F, dt)
+        columns.clear()
+        a = fast.solve(K, np.full(K, direction))
+        assert columns == [K + 1]  # one LP, no chain variables
+        b = chain.solve(K, np.full(K, direction))
+        assert columns[1:] == [2 * K + 2]
+        assert a is not None and b is not None
+        assert abs(a.t - b.t) <= 1e-9 * b.t
+        assert np.max(np.abs(a.u - b.u)) <= 1e-6 * b.t
+        v = fast.velocities(a.u, a.pattern)
+        assert np.all(direction * v[1:K] >= -1e-12 * np.max(np.abs(v)))
+        # without sign conditions (the pattern's friction a known force only) the LP is its arrival rows too
+        columns.clear()
+        c = fast.solve(K, np.full(K, direction), signs=False)
+        d = chain.solve(K, np.full(K, direction), signs=False)
+        assert columns == [K + 1, 2 * K + 2]
+        assert abs(c.t - d.t) <= 1e-9 * d.t
+        assert fast.feasible_solves == chain.feasible_solves == 2  # counted alike (the planner reads it)

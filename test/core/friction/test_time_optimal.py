@@ -696,3 +696,27 @@ def test_zoh_of_an_exact_sampled_move_needs_no_direction_run(monkeypatch):
     assert sp.samples * 0.01 == pytest.approx(prof.duration)
     x = simulate_coulomb(problem.model, problem.x0, sp.input(), F, [sp.duration, sp.duration + 1.0])
     assert np.max(np.abs(x - problem.model.rest_state(problem.target))) < 1e-12
+
+
+def test_a_move_held_on_the_way_is_tried_before_coarser_samples():
+    """Seed-18 fuzz case 99 (one mode, c = 0, F = 0.38 u_max, a 0.19 mm move; at least 0.053 s, proved).  No
+    sliding sequence at the first sample period; before, the planner went to 4 x coarser samples and
+    returned a sliding move of 5.4 s.  Now the move held by friction on the way at the first period is tried
+    first: 0.16 s (16 commands at 100 Hz), exact in the event-located simulation, its pattern certified."""
+    from flexmotion_ros.core.friction.certificate import FrictionStatus
+
+    m = ModalModel(
+        b0=0.34679121849582395, c=0.0, omega=(1.753589115602974,), zeta=(0.23997508298296338,), b=(0.9698103249298977,)
+    )
+    u_max = 0.9428903438982117
+    problem, F = MoveProblem(m, u_max, [0.0] * m.n_states, 0.000192726173971487), 0.3808752856060291 * u_max
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.duration <= 0.2  # was 5.4 s
+    assert prof.lower_bound is not None and prof.duration >= prof.lower_bound
+    assert prof.certificate.status is FrictionStatus.SAMPLED_PATTERN
+    assert np.max(np.abs(prof.levels)) <= u_max
+    xf = m.rest_state(problem.target)
+    x = simulate_coulomb(m, problem.x0, prof.input(), F, [prof.duration, 2.0 * prof.duration + 1.0])
+    full = simulate_coulomb(m, problem.x0, prof.input(), F, np.linspace(0.0, prof.duration, 200))
+    scale = np.max(np.abs(full - xf), axis=0) + 1e-300
+    assert np.max(np.abs(x - xf) / scale) < 1e-8

@@ -88,3 +88,48 @@ def test_an_lp_past_its_iteration_limit_is_not_a_verdict():
     again = solve_lp(**kw, iteration_limit=10_000)  # the option is reset, not left at 1
     assert again.status is LpStatus.OPTIMAL and again.objective == pytest.approx(full.objective, rel=1e-12)
     assert solve_lp(**kw).status is LpStatus.OPTIMAL
+
+
+def fuzz_691():
+    """Seed-18 fuzz case 691 (4 modes, c < 0, F = 0.45 u_max): at least 353 s (proved), and no sampled move at
+    samples of 0.63 s or longer: its structure LPs grew to 3,800 samples, 2 s each, for a minute."""
+    m = ModalModel(
+        b0=3.345540104959449,
+        c=-0.8344490273030069,
+        omega=(0.3969469351294795, 1.8992055158445165, 2.3256540115887905, 23.09323805134832),
+        zeta=(0.27795148138830567, 0.11537614019626988, 0.28792206761291306, 0.25094439737138635),
+        b=(-0.9584873858559433, 1.6753760736882883, -0.6312390780121356, 1.6202876222220521),
+    )
+    u_max = 0.1440739180618157
+    return MoveProblem(m, u_max, [0.0] * m.n_states, 112.44162378088156), 0.4468873974944431 * u_max
+
+
+def test_a_move_past_the_structure_budget_is_refused_in_one_line_within_it(monkeypatch):
+    """Before: case 691 planned an 800 s move of 80,031 samples in 63 s CPU (LPs of up to 3,855 samples).  Now
+    the structure search's LPs share an effort budget (squared rows plus columns, summed); past it, with no
+    move found, the plan is refused in one line that names the reason.  The budget is lowered here (the real
+    one, 1e9, refuses case 691 after about 9 s) so the test is quick; the effort spent is counted
+    independently, from the sizes of the LPs handed to the solver."""
+    from flexmotion_ros.core.errors import GoalError
+    from flexmotion_ros.core.friction import time_optimal
+
+    budget = 200_000_000
+    monkeypatch.setattr(time_optimal, "STRUCTURE_EFFORT", budget, raising=False)
+    spent = [0]
+    real = sampled_lp.solve_lp
+
+    def counting(**kw):
+        size = kw["cost"].size + kw["A_eq"].shape[0] + (0 if kw["A_ub"] is None else kw["A_ub"].shape[0])
+        spent[0] += size * size
+        # the search's budget and the quarter of it a held move at the first period may spend on its own
+        assert spent[0] <= budget + budget // 4, f"effort {spent[0]:.3g} past the budget {budget:.3g}"  # old: fails
+        return real(**kw)
+
+    monkeypatch.setattr(sampled_lp, "solve_lp", counting)
+    problem, F = fuzz_691()
+    with pytest.raises(GoalError) as info:
+        plan_time_optimal_friction(problem, F, 100.0)
+    message = str(info.value)
+    assert "\n" not in message
+    assert "at least 353 s" in message and "work budget" in message and "shorter moves" in message
+    assert 0 < spent[0] <= budget + budget // 4
