@@ -577,3 +577,50 @@ def test_windows_do_not_free_a_chattering_limit_arc():
     K = r.sampled.samples
     assert r.minimal and r.lower_bound_samples == K
     assert not feasible_state_space(problem, K - 1, dt, limits)
+
+
+def _bench_limits(problem, rate):
+    """bench/fuel_limits.py's all-three limits: 0.8 x the unlimited velocity peak, 0.6 x its deflection peak, 10 N/s."""
+    unlimited = plan_time_optimal_zoh(problem, rate)
+    peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
+    peak_q = float(np.max(np.abs(unlimited.states[:, 2])))
+    return unlimited, Limits(0.8 * peak_v, (0.6 * peak_q,), 10.0)
+
+
+def test_accepted_lp_in_the_levels_own_windows():
+    """The accepted smooth LP is solved in the final level's own windows, not the first probe's wider ones.
+
+    The bench's all-three move at 500 Hz: the first probe at ``K`` has 592 free samples (windows mapped
+    from 125 Hz); the accepted LP on main had them too, now 284 (the windows of the ``K - 1`` probe).
+    The count, its proof and the exactness are unchanged (2798 samples on main as now).
+    """
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 500.0
+    unlimited, limits = _bench_limits(problem, rate)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert r.extra["accepted_free_samples"] < 0.6 * r.extra["free_samples"]
+    assert r.sampled.samples == 2798
+    assert r.minimal and r.lower_bound_samples == 2798
+    assert r.extra["lower_bound_proof"] == "weak-duality bound"
+    check_every_limit(problem, r, limits)
+
+
+def test_accepted_lp_falls_back_to_the_probes_windows(monkeypatch):
+    """Own windows in which the smooth LP has no solution leave the plan to the probe's windows, as before."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 250.0
+    unlimited, limits = _bench_limits(problem, rate)
+    before = plan_limited_zoh(problem, rate, limits, unlimited)
+    tried = []
+
+    def one_run(level, K):  # every sample but the ends at one level: the target cannot be reached
+        tried.append(K)
+        return limits_mod.Segments.from_runs(K, [(1, K - 1, 0.0)])
+
+    monkeypatch.setattr(limits_mod, "_narrow_segments", one_run)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert tried == [before.sampled.samples]
+    assert r.sampled.samples == before.sampled.samples and r.minimal == before.minimal
+    assert r.extra["accepted_free_samples"] == r.extra["free_samples"]
+    np.testing.assert_array_equal(r.sampled.commands, before.sampled.commands)
+    check_every_limit(problem, r, limits)
