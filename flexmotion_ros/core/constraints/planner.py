@@ -255,12 +255,14 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
     while K0 * rates[0] / rate > FULL_SAMPLES:
         rates.insert(0, rates[0] / COARSE_FACTOR)
     ref, seed, times, solves, skipped = None, None, [], 0, []
+    profile = None
     level = None
     for r in rates:
         final = r == rate
         width = 0 if ref is None else MAP_WIDTH * COARSE_FACTOR + 2
         level = Level(problem, r, limits, round(K_soft * r / rate) + 10, lp if final else None, ref, width)
         level.lp.coarse_rows = seed
+        level.lp.coarse_profile = profile
         level.reachable = K0 if final else None
         level.deadline = level.lp.deadline = deadline
         lo = max(proved - 1, 0) if final else max(math.ceil(T_star * r * (1.0 - 1e-12)) - 1, 0)
@@ -301,6 +303,7 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
             handoff = r * COARSE_FACTOR == rate
             ref = level.reference(K if handoff or K - 1 not in level.sols else K - 1)
             seed = (level.lp.run_rows[ref[1]], ref[1]) if ref[1] in level.lp.run_rows else None
+            profile = level.lp.profile
             solves += level.lp.solves
     coarse_time = time.perf_counter() - t0
     accepted = None

@@ -233,11 +233,11 @@ def test_an_undecided_lp_is_never_read_as_infeasible(monkeypatch):
     real = limit_lp.LimitLP._solve_once
     seen = {}
 
-    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None):
+    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
         if self.dt == 1.0 / 50.0 and mode == "scaled" and not seen.get(K):
             seen[K] = True
             raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS Status 0: Not Set)")
-        return real(self, K, seg, mode, extra, t_fix, warm)
+        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
 
     monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", flaky)
     problem = rest_to_rest(WB, 1.0, 1.0)
@@ -624,3 +624,44 @@ def test_accepted_lp_falls_back_to_the_probes_windows(monkeypatch):
     assert r.extra["accepted_free_samples"] == r.extra["free_samples"]
     np.testing.assert_array_equal(r.sampled.commands, before.sampled.commands)
     check_every_limit(problem, r, limits)
+
+
+@pytest.mark.parametrize("guess", ["none", "own"])
+def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
+    """A scaled LP includes the knot and command rows only where a reference solution came near the limit
+    (:data:`.lp.LAZY_KEEP`); every row it left out and the solution violates is added and the LP solved
+    again.  Same ``t`` as with every row, fewer rows, and every limit within ``t`` at every sample on the
+    exact simulation -- from a reference that predicts no row at all, and from the LP's own optimum.
+    """
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 62.5
+    dt = 1.0 / rate
+    _unlimited, limits = _bench_limits(problem, rate)
+    lp = limit_lp.LimitLP(problem, dt, limits)
+    K = 349
+    sizes = []
+    real = limit_lp.solve_lp
+
+    def spy(**kw):
+        sizes.append(kw["A_ub"].shape[0])
+        return real(**kw)
+
+    monkeypatch.setattr(limit_lp, "solve_lp", spy)
+    full = lp.solve(K)  # no reference yet: every row
+    n_full = sizes[-1]
+    if guess == "none":
+        lp.profile = (K, np.zeros(K), [np.zeros(K + 1) for _ in lp.blocks])
+    sizes.clear()
+    sol = lp.solve(K)
+    assert max(sizes) < 0.8 * n_full
+    if guess == "none":
+        assert len(sizes) >= 2  # the rows it violated were added
+    assert sol.t == pytest.approx(full.t, rel=1e-9, abs=0.0)
+    u = sol.u
+    assert np.max(np.abs(u)) <= problem.u_max * sol.t * (1 + 1e-9)
+    states = simulate_samples(problem.model, problem.x0, u, dt)
+    tol = sol.t * (1 + 1e-7)
+    assert np.max(np.abs(states[:, 1])) <= limits.velocity_max * tol
+    assert np.max(np.abs(states[:, 2])) <= limits.deflection_max[0] * tol
+    steps = np.abs(np.diff(np.concatenate([[0.0], u, [0.0]])))
+    assert np.max(steps) <= limits.slew_rate * dt * tol
