@@ -653,9 +653,11 @@ def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
         lp.profile = (K, np.zeros(K), [np.zeros(K + 1) for _ in lp.blocks])
     sizes.clear()
     sol = lp.solve(K)
-    assert max(sizes) < 0.8 * n_full
+    assert sizes[0] < 0.8 * n_full
     if guess == "none":
         assert len(sizes) >= 2  # the rows it violated were added
+    else:
+        assert max(sizes) < 0.8 * n_full
     assert sol.t == pytest.approx(full.t, rel=1e-9, abs=0.0)
     u = sol.u
     assert np.max(np.abs(u)) <= problem.u_max * sol.t * (1 + 1e-9)
@@ -665,3 +667,30 @@ def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
     assert np.max(np.abs(states[:, 2])) <= limits.deflection_max[0] * tol
     steps = np.abs(np.diff(np.concatenate([[0.0], u, [0.0]])))
     assert np.max(steps) <= limits.slew_rate * dt * tol
+
+
+def test_no_verdict_with_rows_left_out_is_decided_with_every_row(monkeypatch):
+    """A scaled LP without a verdict when rows are left out is solved again with every row: the
+    plan is the one found without leaving rows out, and no count is stepped past."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 62.5
+    unlimited, limits = _bench_limits(problem, rate)
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", -1.0)  # every row included: the plan as before
+    every_row = plan_limited_zoh(problem, rate, limits, unlimited)
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", 0.5)
+    real = limit_lp.LimitLP._solve_once
+    refused = []
+
+    def no_verdict_when_lazy(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
+        if lazy is not None:
+            refused.append(K)
+            raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS: Unknown)")
+        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
+
+    monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", no_verdict_when_lazy)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert refused
+    assert r.sampled.samples == every_row.sampled.samples
+    assert r.minimal == every_row.minimal and r.lower_bound_samples == every_row.lower_bound_samples
+    np.testing.assert_array_equal(r.sampled.commands, every_row.sampled.commands)
+    check_every_limit(problem, r, limits)
