@@ -89,7 +89,7 @@ class LimitRows:
         self._kd: dict[int, KData] = {}
         self.run_rows: dict[int, list[set]] = {}  # samples inside runs with limit rows, per K and block (generated)
         self.coarse_rows: tuple[list[set], int] | None = None  # a coarser level's rows and count (seeds)
-        # the last scaled solution at this rate and the coarser level's: (K, v / t, limited states / t)
+        # the last scaled solution at this rate and the coarser level's: (K, K dt, v / t, limited states / t)
         self.profile: tuple | None = None
         self.coarse_profile: tuple | None = None
         self._at_cache: dict = {}

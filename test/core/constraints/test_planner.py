@@ -36,6 +36,7 @@ from flexmotion_ros.core.constraints import planner as limits_mod
 from flexmotion_ros.core.constraints import proof as limit_proof
 from flexmotion_ros.core.constraints.limits import Limits, deflection_peaks
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.constraints.structure import map_runs, solution_runs
 from flexmotion_ros.core.errors import FlexmotionError, GoalError, SolverError
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.simulation.exact import step_matrices
@@ -628,17 +629,20 @@ def test_accepted_lp_falls_back_to_the_probes_windows(monkeypatch):
 
 @pytest.mark.parametrize("guess", ["none", "own"])
 def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
-    """A scaled LP includes the knot and command rows only where a reference solution came near the limit
-    (:data:`.lp.LAZY_KEEP`); every row it left out and the solution violates is added and the LP solved
-    again.  Same ``t`` as with every row, fewer rows, and every limit within ``t`` at every sample on the
-    exact simulation -- from a reference that predicts no row at all, and from the LP's own optimum.
+    """A scaled window LP includes the knot and command rows only where a reference solution came near the
+    limit (:data:`.lp.LAZY_KEEP`); every row it left out and the solution violates is added and the LP
+    solved again.  Same ``t`` as with every row, fewer rows, and every limit within ``t`` at every sample
+    on the exact simulation -- from a reference that predicts no row at all, and from the LP's own optimum.
     """
     problem = rest_to_rest(WB, 1.0, 2.0)
     rate = 62.5
     dt = 1.0 / rate
     _unlimited, limits = _bench_limits(problem, rate)
-    lp = limit_lp.LimitLP(problem, dt, limits)
     K = 349
+    every = limit_lp.LimitLP(problem, dt, limits)
+    opt = every.solve(K)  # every sample free: every row
+    seg = map_runs(solution_runs(opt, every.um, every.slew), K, K, 4)
+    assert seg.n_free < K
     sizes = []
     real = limit_lp.solve_lp
 
@@ -647,12 +651,14 @@ def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
         return real(**kw)
 
     monkeypatch.setattr(limit_lp, "solve_lp", spy)
-    full = lp.solve(K)  # no reference yet: every row
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", -1.0)  # every row
+    full = every.solve(K, seg)
     n_full = sizes[-1]
-    if guess == "none":
-        lp.profile = (K, np.zeros(K), [np.zeros(K + 1) for _ in lp.blocks])
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", 0.5)
+    lp = limit_lp.LimitLP(problem, dt, limits)
+    lp.profile = every.profile if guess == "own" else (K, K * dt, np.zeros(K), [np.zeros(K + 1) for _ in lp.blocks])
     sizes.clear()
-    sol = lp.solve(K)
+    sol = lp.solve(K, seg)
     assert sizes[0] < 0.8 * n_full
     if guess == "none":
         assert len(sizes) >= 2  # the rows it violated were added
