@@ -15,6 +15,26 @@ import numpy as np
 
 #: Row kinds in :class:`LPSolution`.
 STATE, CUT, SLEW = 0, 1, 2
+#: Row kind of the command rows ``+-v_m <= t`` (negative: not a limit row, no place in the dual bound).
+COMMAND = -2
+
+
+@dataclass(frozen=True, kw_only=True)
+class Lazy:
+    """Which rows of a scaled LP are included (the others are checked after the solve).
+
+    The masks grow in place as left-out rows are found violated (:meth:`.lp.LimitLP.solve`).
+
+    Attributes
+    ----------
+    state : list of numpy.ndarray
+        Per block, shape ``(K + 1, 2)``: include the ``+`` / ``-`` limit row at sample ``k`` (at knots).
+    command : numpy.ndarray
+        Shape ``(K, 2)``: include ``+v_m <= t`` / ``-v_m <= t`` (free samples).
+    """
+
+    state: list
+    command: np.ndarray
 
 
 @dataclass

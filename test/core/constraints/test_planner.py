@@ -36,6 +36,7 @@ from flexmotion_ros.core.constraints import planner as limits_mod
 from flexmotion_ros.core.constraints import proof as limit_proof
 from flexmotion_ros.core.constraints.limits import Limits, deflection_peaks
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.constraints.structure import map_runs, solution_runs
 from flexmotion_ros.core.errors import FlexmotionError, GoalError, SolverError
 from flexmotion_ros.core.methods.table import plan_move
 from flexmotion_ros.core.simulation.exact import step_matrices
@@ -233,11 +234,11 @@ def test_an_undecided_lp_is_never_read_as_infeasible(monkeypatch):
     real = limit_lp.LimitLP._solve_once
     seen = {}
 
-    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None):
+    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
         if self.dt == 1.0 / 50.0 and mode == "scaled" and not seen.get(K):
             seen[K] = True
             raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS Status 0: Not Set)")
-        return real(self, K, seg, mode, extra, t_fix, warm)
+        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
 
     monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", flaky)
     problem = rest_to_rest(WB, 1.0, 1.0)
@@ -577,3 +578,125 @@ def test_windows_do_not_free_a_chattering_limit_arc():
     K = r.sampled.samples
     assert r.minimal and r.lower_bound_samples == K
     assert not feasible_state_space(problem, K - 1, dt, limits)
+
+
+def _bench_limits(problem, rate):
+    """bench/fuel_limits.py's all-three limits: 0.8 x the unlimited velocity peak, 0.6 x its deflection peak, 10 N/s."""
+    unlimited = plan_time_optimal_zoh(problem, rate)
+    peak_v = float(np.max(np.abs(unlimited.states[:, 1])))
+    peak_q = float(np.max(np.abs(unlimited.states[:, 2])))
+    return unlimited, Limits(0.8 * peak_v, (0.6 * peak_q,), 10.0)
+
+
+def test_accepted_lp_in_the_levels_own_windows():
+    """The accepted smooth LP is solved in the final level's own windows, not the first probe's wider ones.
+
+    The bench's all-three move at 500 Hz: the first probe at ``K`` has 592 free samples (windows mapped
+    from 125 Hz); the accepted LP on main had them too, now 284 (the windows of the ``K - 1`` probe).
+    The count, its proof and the exactness are unchanged (2798 samples on main as now).
+    """
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 500.0
+    unlimited, limits = _bench_limits(problem, rate)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert r.extra["accepted_free_samples"] < 0.6 * r.extra["free_samples"]
+    assert r.sampled.samples == 2798
+    assert r.minimal and r.lower_bound_samples == 2798
+    assert r.extra["lower_bound_proof"] == "weak-duality bound"
+    check_every_limit(problem, r, limits)
+
+
+def test_accepted_lp_falls_back_to_the_probes_windows(monkeypatch):
+    """Own windows in which the smooth LP has no solution leave the plan to the probe's windows, as before."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 250.0
+    unlimited, limits = _bench_limits(problem, rate)
+    before = plan_limited_zoh(problem, rate, limits, unlimited)
+    tried = []
+
+    def one_run(level, K):  # every sample but the ends at one level: the target cannot be reached
+        tried.append(K)
+        return limits_mod.Segments.from_runs(K, [(1, K - 1, 0.0)])
+
+    monkeypatch.setattr(limits_mod, "_narrow_segments", one_run)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert tried == [before.sampled.samples]
+    assert r.sampled.samples == before.sampled.samples and r.minimal == before.minimal
+    assert r.extra["accepted_free_samples"] == r.extra["free_samples"]
+    np.testing.assert_array_equal(r.sampled.commands, before.sampled.commands)
+    check_every_limit(problem, r, limits)
+
+
+@pytest.mark.parametrize("guess", ["none", "own"])
+def test_scaled_lp_leaves_out_rows_far_from_their_limit(monkeypatch, guess):
+    """A scaled window LP includes the knot and command rows only where a reference solution came near the
+    limit (:data:`.lp.LAZY_KEEP`); every row it left out and the solution violates is added and the LP
+    solved again.  Same ``t`` as with every row, fewer rows, and every limit within ``t`` at every sample
+    on the exact simulation -- from a reference that predicts no row at all, and from the LP's own optimum.
+    """
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 62.5
+    dt = 1.0 / rate
+    _unlimited, limits = _bench_limits(problem, rate)
+    K = 349
+    every = limit_lp.LimitLP(problem, dt, limits)
+    opt = every.solve(K)  # every sample free: every row
+    seg = map_runs(solution_runs(opt, every.um, every.slew), K, K, 4)
+    assert seg.n_free < K
+    sizes = []
+    real = limit_lp.solve_lp
+
+    def spy(**kw):
+        sizes.append(kw["A_ub"].shape[0])
+        return real(**kw)
+
+    monkeypatch.setattr(limit_lp, "solve_lp", spy)
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", -1.0)  # every row
+    full = every.solve(K, seg)
+    n_full = sizes[-1]
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", 0.5)
+    lp = limit_lp.LimitLP(problem, dt, limits)
+    lp.profile = every.profile if guess == "own" else (K, K * dt, np.zeros(K), [np.zeros(K + 1) for _ in lp.blocks])
+    sizes.clear()
+    sol = lp.solve(K, seg)
+    assert sizes[0] < 0.8 * n_full
+    if guess == "none":
+        assert len(sizes) >= 2  # the rows it violated were added
+    else:
+        assert max(sizes) < 0.8 * n_full
+    assert sol.t == pytest.approx(full.t, rel=1e-9, abs=0.0)
+    u = sol.u
+    assert np.max(np.abs(u)) <= problem.u_max * sol.t * (1 + 1e-9)
+    states = simulate_samples(problem.model, problem.x0, u, dt)
+    tol = sol.t * (1 + 1e-7)
+    assert np.max(np.abs(states[:, 1])) <= limits.velocity_max * tol
+    assert np.max(np.abs(states[:, 2])) <= limits.deflection_max[0] * tol
+    steps = np.abs(np.diff(np.concatenate([[0.0], u, [0.0]])))
+    assert np.max(steps) <= limits.slew_rate * dt * tol
+
+
+def test_no_verdict_with_rows_left_out_is_decided_with_every_row(monkeypatch):
+    """A scaled LP without a verdict when rows are left out is solved again with every row: the
+    plan is the one found without leaving rows out, and no count is stepped past."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 62.5
+    unlimited, limits = _bench_limits(problem, rate)
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", -1.0)  # every row included: the plan as before
+    every_row = plan_limited_zoh(problem, rate, limits, unlimited)
+    monkeypatch.setattr(limit_lp, "LAZY_KEEP", 0.5)
+    real = limit_lp.LimitLP._solve_once
+    refused = []
+
+    def no_verdict_when_lazy(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
+        if lazy is not None:
+            refused.append(K)
+            raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS: Unknown)")
+        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
+
+    monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", no_verdict_when_lazy)
+    r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert refused
+    assert r.sampled.samples == every_row.sampled.samples
+    assert r.minimal == every_row.minimal and r.lower_bound_samples == every_row.lower_bound_samples
+    np.testing.assert_array_equal(r.sampled.commands, every_row.sampled.commands)
+    check_every_limit(problem, r, limits)

@@ -144,9 +144,9 @@ def test_bench_move_at_1khz_with_all_three_limits_needs_no_wide_lp():
     free = []
     real = limit_lp.LimitLP.assemble
 
-    def assemble(self, K, seg, mode, extra, t_fix=None):
+    def assemble(self, K, seg, mode, extra, *args):
         free.append(seg.n_free)
-        return real(self, K, seg, mode, extra, t_fix)
+        return real(self, K, seg, mode, extra, *args)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(limit_lp.LimitLP, "assemble", assemble)
