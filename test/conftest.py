@@ -18,3 +18,29 @@ from hypothesis import settings
 settings.register_profile("local", deadline=None)
 settings.register_profile("ci", derandomize=True, print_blob=True, deadline=None)
 settings.load_profile(os.environ.get("FLEXMOTION_HYPOTHESIS_PROFILE", "local"))
+
+
+import pytest  # noqa: E402  (after the environment above, like hypothesis)
+
+
+@pytest.fixture
+def spy(monkeypatch):
+    """Record the calls of a real function without changing what it does.
+
+    ``calls = spy(owner, "name", record)`` replaces ``owner.name`` (a module function or a class's method) by a
+    wrapper that appends ``record(*args, **kwargs)`` to ``calls`` (default: 1 per call) and then calls the real
+    one; the work-bound tests count expm samples, exact runs and LP sizes with it.  ``monkeypatch`` undoes it.
+    """
+
+    def install(owner, name, record=None):
+        real = getattr(owner, name)
+        calls = []
+
+        def recording(*args, **kwargs):
+            calls.append(1 if record is None else record(*args, **kwargs))
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(owner, name, recording)
+        return calls
+
+    return install

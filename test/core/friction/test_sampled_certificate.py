@@ -123,7 +123,7 @@ def test_the_bound_is_below_every_feasible_move_of_the_pattern(fuzz_1_plan):
 
 
 @pytest.mark.parametrize("case", [fuzz_1, fuzz_6], ids=["fuzz1_stuck", "fuzz6_boundary_arc"])
-def test_the_dual_comes_from_a_sparse_lp_and_proves_the_dense_bound(case, monkeypatch):
+def test_the_dual_comes_from_a_sparse_lp_and_proves_the_dense_bound(case, spy):
     """Before: the dual came from the dense rows (``K^2 / 2`` nonzeros of velocity rows; 20-30 ms of a median
     plan at 190 samples).  Now one LP in scaled chain form (bounds for the peak and signs, a few nonzeros per
     sample) gives multipliers that pass the same numpy check on the dense rows, with the dense LP's bound."""
@@ -132,17 +132,13 @@ def test_the_dual_comes_from_a_sparse_lp_and_proves_the_dense_bound(case, monkey
     problem, F = case()
     prof = plan_time_optimal_friction(problem, F, 100.0)
     lp, u, s = pattern_of(prof)
-    sizes = []
-    real = sc.solve_lp
-
-    def counting(**kw):
-        nnz = sum(
+    sizes = spy(
+        sc,
+        "solve_lp",
+        lambda **kw: sum(
             A.nnz if hasattr(A, "nnz") else np.count_nonzero(A) for A in (kw["A_ub"], kw["A_eq"]) if A is not None
-        )
-        sizes.append(nnz)
-        return real(**kw)
-
-    monkeypatch.setattr(sc, "solve_lp", counting)
+        ),
+    )
     pc = sc.certify_sampled(lp, s, u)
     assert pc.passed, pc.message
     K, nI = u.size, lp.I.size

@@ -233,7 +233,7 @@ def test_a_period_too_fine_for_the_move_is_left_after_one_relaxed_lp():
     assert lp.solves <= 8
 
 
-def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violated(monkeypatch):
+def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violated(spy):
     """Before: every signed LP of the structure search was the chain form (2 K + 2 columns, about one simplex
     iteration per row: 2-4 ms at 190 samples).  Now a monotone pattern's LP is first solved with the arrival
     rows alone (K + 1 columns); where its velocities keep their sign that is the signed LP's optimum, the same
@@ -251,14 +251,7 @@ def test_a_monotone_pattern_is_solved_by_its_arrival_rows_when_no_sign_is_violat
     u_max = 0.8662531907123768
     problem, F = MoveProblem(m, u_max, [0.0] * m.n_states, 18.125361827457088), 0.22264954899363443 * u_max
     direction = 1.0
-    columns = []
-    real = mod.solve_lp
-
-    def counting(**kw):
-        columns.append(kw["cost"].size)
-        return real(**kw)
-
-    monkeypatch.setattr(mod, "solve_lp", counting)
+    columns = spy(mod, "solve_lp", lambda **kw: kw["cost"].size)
     for K, dt in ((64, 0.38), (66, 0.38), (188, 0.13), (192, 0.13)):  # the structure search's LPs of this move
         fast = FrictionLP(problem, F, dt)
         fast.monotone_rows = True  # as the structure search makes them (set after, so the old code runs too)

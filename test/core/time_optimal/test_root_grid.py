@@ -44,17 +44,12 @@ CASE_1310 = (
 T_1310 = 311.3609250605216
 
 
-def test_a_chattering_stop_isolates_roots_on_the_modes_still_ringing(monkeypatch):
+def test_a_chattering_stop_isolates_roots_on_the_modes_still_ringing(monkeypatch, spy):
     model, u_max, x0, target = CASE_1310
     problem = MoveProblem(model, u_max, np.asarray(x0, dtype=float), target)
-    real = switching.isolate_roots
-    sampled = []
-
-    def counting(system, nu, T, grid=None, *args, **kwargs):
-        sampled.append(np.size(grid) if grid is not None else -1)
-        return real(system, nu, T, grid, *args, **kwargs)
-
-    monkeypatch.setattr(switching, "isolate_roots", counting)
+    sampled = spy(
+        switching, "isolate_roots", lambda system, nu, T, grid=None, *a, **kw: -1 if grid is None else np.size(grid)
+    )
     # the full solver alone: since wip/tail3 the fast path answers this stop (its root isolation is not counted here)
     monkeypatch.setattr(solver, "FAST_PATH", False)
     profile = plan_time_optimal(problem)
