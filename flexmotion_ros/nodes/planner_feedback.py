@@ -43,7 +43,7 @@ from ..execution.replan import ReplanStatus, replan
 from ..execution.splice import PLAN_TIME_WINDOW, lead_samples
 from ..execution.summary import plan_summary
 from ..execution.timeline import Segment
-from .planner_goals import MoveRecord
+from .planner_moves import MoveRecord
 from .plant_measurements import MEASUREMENT_QOS
 from .plant_measurements import TOPIC as MEASUREMENTS_TOPIC
 

@@ -62,8 +62,8 @@ from ..execution.records import RECORD_CAPACITY_S, SignalLog, paired_record
 from ..execution.timeline import Segment
 from .measurement_listener import MeasurementListener
 from .multi_axis import is_multi
-from .planner_goals import MoveRecord
 from .planner_learning import LearningHandling
+from .planner_moves import MoveRecord
 
 #: After the excitation's last command, readings may still be in flight this long (s) beyond ``state.timeout_s``.
 READINGS_GRACE_S = 2.0

@@ -39,8 +39,9 @@ Interfaces (standard types only)
     samples, method, certificate, planning time, stream timing
     (:mod:`.planner_status`).
 
-Requests (:mod:`.planner_goals`): goals are planned off the executor, in one
-planning thread (:mod:`flexmotion_ros.execution.requests`): the newest goal
+Requests (received by :mod:`.planner_goals`, planned and installed by
+:mod:`.planner_moves`): goals are planned off the executor, in one planning
+thread (:mod:`flexmotion_ros.execution.requests`): the newest goal
 wins, a goal superseded before it was planned is answered so and counted
 (``goals_superseded`` on /diagnostics); ``~/stop`` cancels the goal being
 planned and is answered within 10 ms.  The executable plans in two forked

@@ -25,7 +25,7 @@ from ..core.multi_input.dispatch import AnyConfig, body_positions, move_problem,
 from ..execution import Segment, plan_summary
 from ..execution.requests import Request, RequestKind
 from ..execution.splice import READY_STOP_LEADS
-from .planner_goals import MoveRecord, Outcome
+from .planner_moves import MoveRecord, Outcome
 
 #: ``~/stop`` answers within this (s): a stop still being planned then is answered with where it will start.
 STOP_ANSWER_S = 0.01

@@ -32,7 +32,7 @@ from ..execution.splice import StopPreparer
 from ..execution.stream_ipc import MAX_INPUTS
 from ..execution.stream_process import StreamProcess
 from ..execution.stream_server import ChildSettings
-from .planner_goals import MoveRecord
+from .planner_moves import MoveRecord
 
 #: Under ``use_sim_time``, the stream's sleep polls the ROS clock this often (wall s).
 SIM_TIME_POLL_S = 0.0005

@@ -6,19 +6,19 @@ import time
 
 from std_msgs.msg import Float64
 
-from flexmotion_ros.nodes import messages, planner_goals, planner_node
+from flexmotion_ros.nodes import messages, planner_moves, planner_node
 
 from .conftest import wait_for
 
 
 def test_status_is_published_during_a_long_plan(ros, monkeypatch):
-    real = planner_goals.plan_move
+    real = planner_moves.plan_move
 
     def slow_plan_move(*args, **kwargs):  # a plan that takes 2 s, like a limited move at 1 kHz
         time.sleep(2.0)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(planner_goals, "plan_move", slow_plan_move)
+    monkeypatch.setattr(planner_moves, "plan_move", slow_plan_move)
     planner = ros.planner(diagnostics_period_s=0.1, **{"state.source": "assumed"})  # no plant: the assumed state
     ros.connected(planner, subscribers=1)
     wait_for(lambda: ros.probe.planner_status() is not None, 5.0, "a first status")

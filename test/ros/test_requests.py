@@ -10,7 +10,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from flexmotion_ros.nodes import planner_goals
+from flexmotion_ros.nodes import planner_moves
 
 from .conftest import goal_request, wait_for
 
@@ -20,7 +20,7 @@ ASSUMED = {"state.source": "assumed"}
 def test_a_stop_never_waits_behind_a_goal_being_planned(ros, monkeypatch):
     # issue 16: a ~/stop answer took 7.06 s behind a goal's plan (old main: the goal was planned in the
     # executor, so ~/stop was not even taken until the 2 s plan below had finished)
-    real = planner_goals.plan_move
+    real = planner_moves.plan_move
     slow_goals = threading.Event()
 
     def plan_move(config, problem, rate_hz=None):
@@ -28,7 +28,7 @@ def test_a_stop_never_waits_behind_a_goal_being_planned(ros, monkeypatch):
             time.sleep(2.0)
         return real(config, problem, rate_hz)
 
-    monkeypatch.setattr(planner_goals, "plan_move", plan_move)
+    monkeypatch.setattr(planner_moves, "plan_move", plan_move)
     planner = ros.planner(**ASSUMED)
     ros.connected(planner, subscribers=1)
     probe = ros.probe
