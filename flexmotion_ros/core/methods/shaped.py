@@ -35,12 +35,13 @@ from ..config import PlannerConfig
 from ..errors import ConfigError, InputError, SolverError
 from ..model.boundary import MoveProblem
 from ..results import PlanResult
+from ..shaping.sampled_shaped import sample_command
 from ..shaping.sensitivity import (
     command_insensitivity,
     residual_amplitudes,
     shaper_insensitivity,
 )
-from ..shaping.shaped_profile import plan_shaped, sample_command
+from ..shaping.shaped_profile import plan_shaped
 from ..shaping.shapers import SHAPERS, check_negative_amplitude, check_tolerance, design
 from ..simulation.exact import PiecewiseConstant
 from ..simulation.prepared import PreparedMove, prepare

@@ -1,5 +1,6 @@
 """Input shapers (seed section 2.1.3), shaped profiles and their sensitivity to model error."""
 
+from .sampled_shaped import sample_command
 from .sensitivity import (
     Insensitivity,
     command_insensitivity,
@@ -7,7 +8,7 @@ from .sensitivity import (
     residual_amplitudes,
     shaper_insensitivity,
 )
-from .shaped_profile import ShapedProfile, plan_shaped, sample_command, shape
+from .shaped_profile import ShapedProfile, plan_shaped, shape
 from .shapers import SHAPER_TABLE, SHAPERS, Shaper, ShaperKind, design, multi_mode_direct
 
 __all__ = [

@@ -15,10 +15,10 @@ from flexmotion_ros.core import (
     simulate,
 )
 from flexmotion_ros.core.model.boundary import motion_to_rest, rest_to_rest
+from flexmotion_ros.core.shaping.sampled_shaped import sample_command
 from flexmotion_ros.core.shaping.sensitivity import shaper_insensitivity
 from flexmotion_ros.core.shaping.shaped_profile import (
     plan_shaped,
-    sample_command,
     shape,
     step_command,
 )
