@@ -2,7 +2,7 @@
 
 The rules of ``docs/architecture.md``: no import cycle (between modules, and
 between the core's subpackages), no import of another module's ``_private``
-name, no dynamic import anywhere in the package, and the numerical core never
+name (nor a read of one through an imported module), no dynamic import anywhere in the package, and the numerical core never
 imports ROS, message packages, matplotlib, the nodes, the command line, the
 plots or ``execution`` (which, ROS-free too, may import only the core).  Each rule is also shown to catch a violation (the ``*_is_caught``
 tests), so none of them can pass vacuously.
@@ -122,6 +122,34 @@ def private_imports(g) -> list[str]:
     ]
 
 
+def private_attribute_uses(files: dict[str, Path]) -> list[str]:
+    """``module._name`` read through a package module bound by an import (``from . import messages``)."""
+    known = set(files)
+    bad = []
+    for m, path in files.items():
+        tree = ast.parse(path.read_text())
+        bound = {}  # local name -> package module
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                target = _absolute(m, path.name == "__init__.py", node)
+                for a in node.names:
+                    if f"{target}.{a.name}" in known:
+                        bound[a.asname or a.name] = f"{target}.{a.name}"
+            elif isinstance(node, ast.Import):
+                bound.update({a.asname: a.name for a in node.names if a.asname and a.name in known})
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in bound
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+                and bound[node.value.id] != m
+            ):
+                bad.append(f"{m} uses {node.attr} of {bound[node.value.id]}")
+    return bad
+
+
 def forbidden_core_imports(g) -> list[str]:
     """Imports the ROS-free layers may not make: the core none of the list, ``execution`` none but the core."""
     bad = []
@@ -186,6 +214,7 @@ def test_no_cycle_between_core_subpackages():
 
 def test_no_private_name_is_imported_across_modules():
     assert private_imports(GRAPH) == []
+    assert private_attribute_uses(FILES) == []
 
 
 def test_the_ros_free_layers_import_no_ros_messages_plots_nodes_or_cli():
@@ -235,6 +264,14 @@ def test_a_subpackage_cycle_is_caught(tmp_path):
 def test_a_private_import_is_caught(tmp_path):
     files = _fake(tmp_path, {"core/a.py": "from .b import _hidden\n", "core/b.py": "_hidden = 1\n"})
     assert private_imports(graph(files)) == [f"{CORE}.a imports _hidden from {CORE}.b"]
+
+
+def test_a_private_name_read_through_an_imported_module_is_caught(tmp_path):
+    files = _fake(
+        tmp_path,
+        {"nodes/a.py": "from . import b\n\nx = b._hidden(1)\n", "nodes/b.py": "def _hidden(v):\n    return v\n"},
+    )
+    assert private_attribute_uses(files) == [f"{PACKAGE}.nodes.a uses _hidden of {PACKAGE}.nodes.b"]
 
 
 @pytest.mark.parametrize(

@@ -236,7 +236,7 @@ def diagnostics(
 ) -> DiagnosticArray:
     """One status in a DiagnosticArray (values as strings)."""
     status = DiagnosticStatus(level=bytes([level]), name=name, message=message, hardware_id=hardware_id)
-    status.values = [KeyValue(key=str(k), value=_text(v)) for k, v in values.items()]
+    status.values = [KeyValue(key=str(k), value=value_text(v)) for k, v in values.items()]
     arr = DiagnosticArray()
     arr.header.stamp = stamp
     arr.status = [status]
@@ -259,7 +259,8 @@ def diagnostic_values(
     return None
 
 
-def _text(v: object) -> str:
+def value_text(v: object) -> str:
+    """A diagnostic or log value as text: floats to 9 significant digits, booleans as ``true`` / ``false``."""
     if isinstance(v, float):
         return f"{v:.9g}"
     if isinstance(v, bool):

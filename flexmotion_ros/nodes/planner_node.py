@@ -405,7 +405,7 @@ class PlannerNode(
         self._frame_id = str(v["frame_id"])
         self.stream.hold_when_idle = bool(v["publish_hold_when_idle"])
         self._apply_identification(v)
-        changed = ", ".join(f"{p.name}={messages._text(p.value)}" for p in params)
+        changed = ", ".join(f"{p.name}={messages.value_text(p.value)}" for p in params)
         self.get_logger().info(f"parameters set ({changed}); the next goal uses them")
 
     @property
