@@ -179,12 +179,16 @@ def _min_peak(M: np.ndarray, w: np.ndarray) -> tuple[np.ndarray | None, np.ndarr
     d = p - n
     if d < 0:
         return None, None
-    x0 = _solve(M, w)
     if d > MAX_FREEDOM or math.comb(2 * p - 1, d) > MAX_VERTICES:
-        return None, x0
-    _, sv, Vt = np.linalg.svd(M)
+        return None, _solve(M, w)
+    U, sv, Vt = np.linalg.svd(M)
     if sv.size < n or sv[-1] <= np.finfo(float).eps * p * sv[0]:  # rank-deficient: the LP decides
         return None, None
+    # the least-norm solution from this SVD (full rank), with one refinement: what _solve's two
+    # least-squares solves give, without factorising M twice more
+    R = Vt[:n].T
+    x0 = R @ ((U.T @ w) / sv)
+    x0 = x0 + R @ ((U.T @ (w - M @ x0)) / sv)
     if d == 0:
         return x0, x0
     N = Vt[n:].T  # p x d

@@ -77,3 +77,20 @@ def test_walk_answers_more_replans_with_the_same_counts():
             old = plan_time_optimal_zoh(problem, 1000.0, continuous)
         assert counts == {(old.samples, old.minimal)}
     assert hits[switch_samples.WALK_ROUNDS] >= hits[0] + 2
+
+
+@pytest.mark.parametrize("d", [0, 1, 2])
+def test_min_peak_factorises_once(d):
+    """``_min_peak`` takes its least-norm point from the SVD it needs anyway: no least-squares solves, same point."""
+    rng = np.random.default_rng(d)
+    M = rng.standard_normal((8, 8 + d))
+    w = rng.standard_normal(8)
+    calls = []
+    real = np.linalg.lstsq
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(np.linalg, "lstsq", lambda *a, **k: calls.append(1) or real(*a, **k))
+        x, x0 = switch_samples._min_peak(M, w)
+    assert not calls
+    ref = switch_samples._solve(M, w)
+    assert np.max(np.abs(x0 - ref)) <= 1e-13 * np.max(np.abs(ref))
+    assert np.max(np.abs(M @ x0 - w)) <= 1e-13 * np.max(np.abs(w))
