@@ -142,9 +142,11 @@ def _sequence_on(G, w, signs, free, u_max) -> tuple[np.ndarray | None, np.ndarra
     if np.any(np.abs(v) > t * (1.0 + PIN_RTOL)):  # a square system's solution past the peak: try the neighbours
         return None, np.abs(v) > t * (1.0 + PIN_RTOL), (v / t if t > 0.0 else None)
     pin = np.abs(v) >= t * (1.0 - PIN_RTOL)
-    fixed[free[pin]] = np.sign(v[pin])
     rest = free[~pin]
-    x = _solve(np.column_stack([fixed @ G, G[rest].T]), w)
+    if pin.any() or M.shape[1] != M.shape[0]:
+        fixed[free[pin]] = np.sign(v[pin])
+        x = _solve(np.column_stack([fixed @ G, G[rest].T]), w)
+    # else: a square system with nothing pinned is solved already (the same matrix again)
     t, v = float(x[0]), x[1:]
     if not (0.0 <= t <= u_max) or np.any(np.abs(v) > t):
         return None, None, None

@@ -94,3 +94,22 @@ def test_min_peak_factorises_once(d):
     ref = switch_samples._solve(M, w)
     assert np.max(np.abs(x0 - ref)) <= 1e-13 * np.max(np.abs(ref))
     assert np.max(np.abs(M @ x0 - w)) <= 1e-13 * np.max(np.abs(w))
+
+
+def test_square_pattern_with_nothing_pinned_is_solved_once():
+    """A square pattern (as many unknowns as states) with no free sample at the peak: one SVD, no re-solve."""
+    rng = np.random.default_rng(5)
+    K, n = 40, 4
+    G = rng.standard_normal((K, n))
+    signs = np.where(np.arange(K) < 20, 1.0, -1.0)
+    free = np.array([5, 19, 31])  # three free samples and the peak: 4 unknowns, 4 equations
+    u_true = signs * 2.0
+    u_true[free] = [0.5, -1.0, 1.5]
+    w = G.T @ u_true
+    calls = []
+    real = switch_samples._solve
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(switch_samples, "_solve", lambda *a: calls.append(1) or real(*a))
+        u, over, v = switch_samples._sequence_on(G, w, signs, free, 3.0)
+    assert not calls
+    assert np.max(np.abs(u - u_true)) <= 1e-12
