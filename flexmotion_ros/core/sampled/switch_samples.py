@@ -7,7 +7,8 @@ sequence therefore is, as a rule, ``+-t`` everywhere but one sample per
 switch.  Given the signs ``S_m = nu^T g_m`` (``nu``: the continuous optimum's
 dual direction), the sample of each sign change whose interval holds the
 switch (the smaller ``|S_m|``; moved to the switch's other sample if its
-value comes out past the peak) is left free, and the final-state equations
+value comes out past the peak, then walked one sample per round toward the
+side it leans to, :func:`_walk`) is left free, and the final-state equations
 are linear in the peak ``t`` and the free values ``v_j``::
 
     t sum_{m fixed} sign_m g_m + sum_j v_j g_{m_j} = w,
@@ -73,37 +74,85 @@ def switch_sample_sequence(G: np.ndarray, w: np.ndarray, S: np.ndarray, u_max: f
     for _ in range(SWAP_ROUNDS):
         picks = np.where(first, change, change + 1)
         free = np.unique(picks)
-        u, over = _sequence_on(G, w, signs, free, u_max)
+        u, over, v = _sequence_on(G, w, signs, free, u_max)
         if u is not None:
             return u
         if over is None or not over.any():
             return None
         first ^= np.isin(picks, free[over])
+    if change.size == 0 or v is None or free.size != change.size:
+        return None
+    return _walk(G, w, free, v, float(signs[0]), u_max)
+
+
+#: :func:`_walk`: rounds at most, each moving every free sample past the peak by one sample.
+WALK_ROUNDS = 8
+
+
+def _walk(G, w, free, v, sign0, u_max) -> np.ndarray | None:
+    """Walk the free samples toward the sampled switches, one sample per round (None if that finds nothing).
+
+    The sampled optimum's switches lie a few samples from the continuous
+    optimum's (its peak is below ``u_max``: ``K dt`` exceeds ``T*`` by a
+    fraction of a sample, and the whole pattern stretches), further than the
+    swaps above reach (one sample).  A free sample whose value ``v`` comes
+    out past the peak in the sign of the arc before it means that arc is
+    longer: its switch moves one sample later; in the sign of the arc after
+    it, one sample earlier.  The arcs keep their signs (``sign0`` first,
+    alternating); two switches in one sample end the walk (the LP decides).
+    The 3-mode replans of ``bench/replan_latency.py``: 48 of 200 took the LP
+    (~2 ms) for switches 1-3 samples away.
+    """
+    K = G.shape[0]
+    free = free.copy()
+    idx = np.arange(K)
+    arc = sign0 * (1.0 - 2.0 * (np.arange(free.size) % 2))  # the sign of the arc before each free sample
+    for _ in range(WALK_ROUNDS):
+        over = np.abs(v) > 1.0 + PIN_RTOL
+        if not over.any():
+            return None
+        free[over] += np.where(np.sign(v[over]) == arc[over], 1, -1)
+        if free[0] < 0 or free[-1] >= K or np.any(np.diff(free) <= 0):
+            return None
+        count = np.searchsorted(free, idx, side="left")  # free samples before (or at) each sample
+        signs = sign0 * (1.0 - 2.0 * (count % 2))
+        u, _, v = _sequence_on(G, w, signs, free, u_max)
+        if u is not None:
+            return u
+        if v is None:
+            return None
     return None
 
 
-def _sequence_on(G, w, signs, free, u_max) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The sequence with the samples ``free`` free, or ``(None, the free samples past the peak or None)``."""
+def _sequence_on(G, w, signs, free, u_max) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """The sequence with the samples ``free`` free, or ``(None, the free samples past the peak or None, v / t)``.
+
+    ``v / t``: the free samples' values relative to the peak (past it: ``|v / t| > 1``), None if not solved.
+    """
     fixed = signs.copy()
     fixed[free] = 0.0
     M = np.column_stack([fixed @ G, G[free].T])  # n x (free + 1): the peak t, then the free samples
     x, x0 = _min_peak(M, w)
     if x is None:
-        return None, (None if x0 is None else np.abs(x0[1:]) > x0[0])
+        if x0 is None:
+            return None, None, None
+        return None, np.abs(x0[1:]) > x0[0], (x0[1:] / x0[0] if x0[0] > 0.0 else None)
     # the vertex to rounding: the free samples at the peak pinned there, the others solved exactly
     t, v = x[0], x[1:]
     if np.any(np.abs(v) > t * (1.0 + PIN_RTOL)):  # a square system's solution past the peak: try the neighbours
-        return None, np.abs(v) > t * (1.0 + PIN_RTOL)
+        return None, np.abs(v) > t * (1.0 + PIN_RTOL), (v / t if t > 0.0 else None)
     pin = np.abs(v) >= t * (1.0 - PIN_RTOL)
-    fixed[free[pin]] = np.sign(v[pin])
     rest = free[~pin]
-    x = _solve(np.column_stack([fixed @ G, G[rest].T]), w)
+    if pin.any() or M.shape[1] != M.shape[0]:
+        fixed[free[pin]] = np.sign(v[pin])
+        x = _solve(np.column_stack([fixed @ G, G[rest].T]), w)
+    # else: a square system with nothing pinned is solved already (the same matrix again)
     t, v = float(x[0]), x[1:]
     if not (0.0 <= t <= u_max) or np.any(np.abs(v) > t):
-        return None, None
+        return None, None, None
     u = fixed * t
     u[rest] = v
-    return (u, None) if lands_exactly(G, w, u) else (None, None)
+    return (u, None, None) if lands_exactly(G, w, u) else (None, None, None)
 
 
 @functools.lru_cache(maxsize=64)
@@ -132,12 +181,16 @@ def _min_peak(M: np.ndarray, w: np.ndarray) -> tuple[np.ndarray | None, np.ndarr
     d = p - n
     if d < 0:
         return None, None
-    x0 = _solve(M, w)
     if d > MAX_FREEDOM or math.comb(2 * p - 1, d) > MAX_VERTICES:
-        return None, x0
-    _, sv, Vt = np.linalg.svd(M)
+        return None, _solve(M, w)
+    U, sv, Vt = np.linalg.svd(M)
     if sv.size < n or sv[-1] <= np.finfo(float).eps * p * sv[0]:  # rank-deficient: the LP decides
         return None, None
+    # the least-norm solution from this SVD (full rank), with one refinement: what _solve's two
+    # least-squares solves give, without factorising M twice more
+    R = Vt[:n].T
+    x0 = R @ ((U.T @ w) / sv)
+    x0 = x0 + R @ ((U.T @ (w - M @ x0)) / sv)
     if d == 0:
         return x0, x0
     N = Vt[n:].T  # p x d

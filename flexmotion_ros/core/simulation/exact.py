@@ -12,6 +12,7 @@ This module is the *independent* check of every planner: it builds the full
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -89,9 +90,20 @@ def _step_cached(A_bytes: bytes, B_bytes: bytes, n: int, h: float) -> tuple[np.n
 
 def step_matrices(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """``Phi(h)``, ``Gamma(h)`` from the augmented matrix exponential (cached)."""
+    return step_function(A, B)(h)
+
+
+def step_function(A: np.ndarray, B: np.ndarray) -> Callable[[float], tuple[np.ndarray, np.ndarray]]:
+    """``h -> (Phi(h), Gamma(h))`` of one system: :func:`step_matrices` with the cache key's bytes taken once.
+
+    For loops over the pieces of one input (:func:`simulate`, the certificate's co-state): the
+    key's conversion and copy per call cost about as much as a cache hit itself.
+    """
     A = np.ascontiguousarray(A, dtype=float)
-    B = np.ascontiguousarray(B, dtype=float).ravel()
-    return _step_cached(A.tobytes(), B.tobytes(), A.shape[0], float(h))
+    key_A = A.tobytes()
+    key_B = np.ascontiguousarray(B, dtype=float).ravel().tobytes()
+    n = A.shape[0]
+    return lambda h: _step_cached(key_A, key_B, n, float(h))
 
 
 def _system(model_or_AB, include_position: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -126,6 +138,7 @@ def simulate(model_or_AB, x0, u: PiecewiseConstant, times=None, include_position
     ndarray, shape ``(len(times), n)``
     """
     A, B = _system(model_or_AB, include_position)
+    step = step_function(A, B)
     x = np.array(x0, dtype=float)
     times = u.breaks if times is None else np.asarray(times, dtype=float)
     order = np.argsort(times, kind="stable")
@@ -145,7 +158,7 @@ def simulate(model_or_AB, x0, u: PiecewiseConstant, times=None, include_position
                 t_next, level = target, 0.0
             h = t_next - t_now
             if h > 0.0:
-                Phi, Gam = step_matrices(A, B, h)
+                Phi, Gam = step(h)
                 x = Phi @ x + Gam * level
             t_now = t_next
             if k < levels.size and t_now >= breaks[k + 1]:

@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from ..results import Certificate, CertificateStatus
-from ..simulation.exact import step_matrices
+from ..simulation.exact import step_function
 from ..tolerances import (
     END_GAP_RTOL,
     GAP_RTOL,
@@ -188,8 +188,9 @@ def _certify_with(
     B = system.B()
     lam = np.empty((breaks.size, A.shape[0]))
     lam[-1] = -np.asarray(nu, float)
+    step = step_function(A, B)
     for k in range(breaks.size - 2, -1, -1):
-        Phi, _ = step_matrices(A, B, breaks[k + 1] - breaks[k])
+        Phi, _ = step(breaks[k + 1] - breaks[k])
         lam[k] = Phi.T @ lam[k + 1]  # lambda(t) = e^{A^T (t' - t)} lambda(t')
     sigma = lam @ B  # B^T lambda(t) at 0, t_1..t_L, T
     switch_residual = float(np.max(np.abs(sigma[1:-1])) / s_max) if switch_times.size else 0.0

@@ -47,8 +47,12 @@ NEAR_ZERO = 1e-2
 VERY_NEAR_ZERO = 1e-3
 #: Smoothing of ``|S|`` (relative to its mean) of the one warm-start level.
 SMOOTHING = 0.005
-#: Steps on the duration of the warm start; it stops within :data:`LOG_TOL` of ``m = 1``.
-OUTER_STEPS = 4
+#: Steps on the duration of the warm start; it stops within :data:`LOG_TOL` of ``m = 1``.  Eight, not four:
+#: where ``m`` is flat at the first duration (``dm/dT`` 4e-3 at a 3-mode replan's ``T_init``) the first step
+#: overshoots 4x and the bracket needs 5-6 steps back; stopped after four, the guess was 11 % short and the
+#: lean Newton failed (the fast path then took ~12 ms more: 5 of the 200 3-mode replans of
+#: ``bench/replan_latency.py``, 1 and 2 of the 1- and 2-mode ones; the others stop where they did).
+OUTER_STEPS = 8
 #: ``|log m(T)|`` below which the warm start's duration is close enough for the switch-time Newton.
 LOG_TOL = 1e-2
 #: Grid points per half period of the fastest mode of the warm start (the planners' grid has 8).

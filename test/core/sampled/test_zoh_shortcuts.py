@@ -121,12 +121,13 @@ def test_same_fewest_samples_as_the_old_path(case):
     check_lands(problem, new)
 
 
-@pytest.mark.parametrize(("modes", "switch_samples"), [(1, True), (3, True), (5, False), (8, False)])
+@pytest.mark.parametrize(("modes", "switch_samples"), [(1, True), (3, True), (5, True), (8, False)])
 def test_bench_move_same_as_old_path(modes, switch_samples):
     """``bench/planner_latency.py``'s 5 s move at 1 kHz: same count, proof and (to 1e-9 of u_max) commands.
 
-    With 1-3 modes the switch-sample sequence is taken (no LP, no correction); with 5 and 8 the sampled
-    structure is not the continuous one, and the LP path decides (the correction on its windows).
+    With 1-3 modes the switch-sample sequence is taken (no LP, no correction); with 5 too since its free
+    samples walk to the sampled switches (``switch_samples._walk``); with 8 the sampled structure is not
+    the continuous one, and the LP path decides (the correction on its windows).
     """
     problem = bench_problem(modes, 5.0)
     continuous = plan_time_optimal(problem)
@@ -200,6 +201,7 @@ def test_switch_samples_move_a_free_sample_to_its_switchs_other_sample():
             taken.clear()
             with pytest.MonkeyPatch.context() as mp:
                 mp.setattr(switch_samples, "SWAP_ROUNDS", rounds)
+                mp.setattr(switch_samples, "WALK_ROUNDS", 0)  # the swaps alone (the walk: test_switch_walk.py)
                 mp.setattr(zoh, "switch_sample_sequence", recorded)
                 new = plan_time_optimal_zoh(problem, 1000.0, continuous)
             hits[rounds] += taken[0] is not None
