@@ -67,10 +67,14 @@ def proved_lower_bound(
         rows = np.stack([system.switching(eye[i], tau_sw) for i in range(n)], axis=1)
         col = np.max(np.abs(rows), axis=0)
         col[col == 0.0] = 1.0
+        if not np.all(np.isfinite(rows / col)):
+            return None
         N = null_space(rows / col, rcond=0.0)
         nu = (N[:, -1] if N.shape[1] else np.linalg.svd(rows / col)[2][-1]) / col
     else:
         nu = eye[n - 1].copy()  # no switch: any direction is a bound; the velocity-like state's
+    if not np.all(np.isfinite(nu)) or not np.any(nu):
+        return None
     T_proved = T * (1.0 - 0.5 * GAP_RTOL)
     for cand in (nu, -nu):
         if _infeasible(system, np.asarray(x0, float), u_max, T_proved, cand, tau_sw, sign_tau):
@@ -97,12 +101,12 @@ def _infeasible(system, x0, u_max, T1, nu, tau_sw, sign_tau) -> bool:
         s = np.unique(np.concatenate([np.linspace(0.0, 1.0, SAMPLES + 1), np.geomspace(1e-12, 0.5, 40)]))
         s = np.unique(np.concatenate([s, 1.0 - s]))
         x = a + (b - a) * s
-        for _ in range(REFINEMENTS + 1):
+        for level in range(REFINEMENTS + 1):
             v = signs[k] * system.switching(nu, x) - ROUNDING * eps * magnitude
             h = np.diff(x)
             low = np.minimum(v[:-1], v[1:]) - d2 * h * h / 8.0  # sigma S on each cell is at least this
             bad = low < 0.0
-            if not np.any(bad) or _ == REFINEMENTS:
+            if not np.any(bad) or level == REFINEMENTS:
                 wrong += float(np.sum(h[bad] * -low[bad]))
                 break
             x = np.unique(np.concatenate([x, 0.5 * (x[:-1] + x[1:])[bad]]))
