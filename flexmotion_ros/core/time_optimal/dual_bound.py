@@ -35,10 +35,16 @@ REFINEMENTS = 6
 ROUNDING = 64.0
 
 
+#: Relative gaps below ``T`` tried by :func:`proved_lower_bound` by default: the certificate's only.
+CERTIFY_GAPS = (0.5 * GAP_RTOL,)
+#: ... and for the bound an uncertified profile reports (the first one proved, smallest first).
+REPORT_GAPS = (0.5 * GAP_RTOL, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 0.1, 0.3)
+
+
 def proved_lower_bound(
-    system, x0: np.ndarray, u_max: float, T: float, switch_times, levels
+    system, x0: np.ndarray, u_max: float, T: float, switch_times, levels, gaps: tuple[float, ...] = CERTIFY_GAPS
 ) -> tuple[float, np.ndarray] | None:
-    """``T (1 - GAP_RTOL / 2)`` (s) and the co-state that proves no move reaches rest by then, else None.
+    """``T (1 - g)`` (s) for the first ``g`` of ``gaps`` at which no move reaches rest, and the co-state; else None.
 
     The co-state direction is that of the profile's switches: the null
     direction of ``S = 0`` at every switch (the extremal's, when there is
@@ -58,6 +64,8 @@ def proved_lower_bound(
         The profile's duration (s).
     switch_times, levels : ndarray
         The profile (forward time, s; levels ``+-u_max``).
+    gaps : tuple of float
+        Relative distances below ``T`` to try, smallest first.
     """
     n = int(system.n)
     tau_sw = np.sort(T - np.asarray(switch_times, float))
@@ -75,10 +83,11 @@ def proved_lower_bound(
         nu = eye[n - 1].copy()  # no switch: any direction is a bound; the velocity-like state's
     if not np.all(np.isfinite(nu)) or not np.any(nu):
         return None
-    T_proved = T * (1.0 - 0.5 * GAP_RTOL)
-    for cand in (nu, -nu):
-        if _infeasible(system, np.asarray(x0, float), u_max, T_proved, cand, tau_sw, sign_tau):
-            return T_proved, cand
+    for gap in gaps:
+        T_proved = T * (1.0 - gap)
+        for cand in (nu, -nu):
+            if _infeasible(system, np.asarray(x0, float), u_max, T_proved, cand, tau_sw, sign_tau):
+                return T_proved, cand
     return None
 
 

@@ -36,7 +36,7 @@ from ..errors import SolverError
 from ..results import BangBangProfile, CertificateStatus, SolverPath
 from ..tolerances import GAP_RTOL
 from .costate_lp import widest_costate
-from .dual_bound import proved_lower_bound
+from .dual_bound import REPORT_GAPS, proved_lower_bound
 from .reachable_set import Shooting
 from .rigid_body import rigid_profile
 from .switch_newton import primal_newton, refine_switches, split_candidates
@@ -264,7 +264,7 @@ def _without_blip(problem, system, sh, roots, sign0, T, t0, T_low, assemble) -> 
     return None
 
 
-def duality_fallback(problem, system, profile, t0, assemble) -> BangBangProfile | None:
+def duality_fallback(problem, system, profile, t0, T_low, assemble) -> BangBangProfile | None:
     """The same profile certified by the gap to a lower bound proved by weak duality, or None.
 
     For a profile that reaches the target but whose Pontryagin sign test
@@ -274,15 +274,29 @@ def duality_fallback(problem, system, profile, t0, assemble) -> BangBangProfile 
     (:func:`~.dual_bound.proved_lower_bound`) that no move arrives before
     ``T (1 - GAP_RTOL / 2)``; the certificate is then ``within_gap`` with that
     bound, as for the rigid body's.  The profile is simulated and certified
-    again (``assemble``); the path it came from is kept.
+    again (``assemble``); the path it came from is kept.  If the bound it
+    proves is farther from ``T`` but above ``T_low`` (s, the rigid body's),
+    the profile is returned uncertified with that bound in its certificate.
     """
     T = profile.duration
     proof = proved_lower_bound(
-        system, problem.shifted_initial(), problem.u_max, T, profile.switch_times, profile.levels
+        system, problem.shifted_initial(), problem.u_max, T, profile.switch_times, profile.levels, REPORT_GAPS
     )
-    if proof is None:
+    if proof is None or not proof[0] > T_low:
         return None
     T_dual, nu = proof  # the certificate's sign test then reports on the co-state that proves the bound
+    if T - T_dual > GAP_RTOL * T:  # not proved optimal: a better bound than the rigid body's, said so
+        cert = replace(
+            profile.certificate,
+            lower_bound=T_dual,
+            message=f"not proved optimal: within {(T - T_dual) / T:.1e} (relative) of the proved lower bound "
+            f"{T_dual!r} s (weak duality with the switches' co-state; the rigid body's is {T_low!r} s)",
+        )
+        better = replace(profile, certificate=cert)
+        better.extra.update(profile.extra)
+        better.extra["duality_bound"] = T_dual
+        better.extra["duality_costate"] = nu  # nu of the proof (the shifted system's time-to-go convention)
+        return better
     signs = np.sign(profile.levels[::-1])
     try:
         proved = assemble(problem, system, nu, T, np.sort(T - profile.switch_times), signs, t0, 0, T_dual)
@@ -295,6 +309,7 @@ def duality_fallback(problem, system, profile, t0, assemble) -> BangBangProfile 
     proved = replace(proved, certificate=cert, iterations=profile.iterations)
     proved.extra.update(profile.extra)
     proved.extra["duality_bound"] = T_dual
+    proved.extra["duality_costate"] = nu
     return proved
 
 

@@ -231,7 +231,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
         profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, _assemble) or profile
     if not profile.certificate.passed:  # a notch whose sign is at rounding: the gap to a dual bound may prove it
-        profile = duality_fallback(problem, system, profile, t0, _assemble) or profile
+        profile = duality_fallback(problem, system, profile, t0, T_low, _assemble) or profile
     profile.extra.setdefault("solver_path", SolverPath.FULL)
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error

@@ -22,7 +22,7 @@ matrix-exponential simulation, the rigid bound, the co-state's signs on a dense 
 from __future__ import annotations
 
 import numpy as np
-from reference_solutions import rigid_min_time
+from reference_solutions import final_error_relative, lower_bound_gap, rigid_min_time
 
 from flexmotion_ros.core import ModalModel, SolverError, plan_time_optimal, rest_to_rest, state_to_rest
 from flexmotion_ros.core.results import CertificateStatus
@@ -113,3 +113,38 @@ def test_a_vibration_alone_is_planned_or_refused_for_what_it_is():
         assert "fixed_time" in text
         return
     check_continuous(VIBRATION_ONLY, profile)  # the planner may one day find it: then it must be right
+
+
+#: Local seed 24 (warm/cold): modes 3.93 / 4.33 rad/s with b = +1 / -1, a nearly uncontrollable pair.  The
+#: structure search's answer (9 switches for 8 states, 0.76121 s) has no co-state (the switch rows have no null
+#: direction), so it is not certified; on dc7aab8 it said "within 3.8e-01 of the proved lower bound" (the rigid
+#: body's, 0.4705 s).  Weak duality with the nearest co-state of its switches proves 1e-3 of it.
+NEARLY_UNCONTROLLABLE_PAIR = state_to_rest(
+    ModalModel(
+        b0=2.9431385830712364, c=0.0, omega=(3.933544715549479, 4.326899187104427, 10.152594131767444),
+        zeta=(0.15808637376595416, 0.19343920431469033, 0.09772506607873209), b=(1.0, -1.0, 0.6178442109875973),
+    ),
+    1.0,
+    [-7.77960196654126, -0.8840849645420794, 0.0498314084435126, -0.04996865494915264, -0.041602496397278185,
+     0.012029514621788376, 0.010717853026098085, 0.005001086439918863],
+    -8.084097781009799,
+)  # fmt: skip
+
+
+def test_an_uncertified_answer_reports_the_bound_weak_duality_proves():
+    profile = plan_time_optimal(NEARLY_UNCONTROLLABLE_PAIR)
+    cert = profile.certificate
+    if cert.passed:  # the planner may one day certify it: then it must be right
+        check_continuous(NEARLY_UNCONTROLLABLE_PAIR, profile)
+        return
+    T = profile.duration
+    assert final_error_relative(NEARLY_UNCONTROLLABLE_PAIR, profile.input()) <= 1e-8  # it does reach the target
+    p, v = NEARLY_UNCONTROLLABLE_PAIR.shifted_initial()[:2]
+    T_rigid = rigid_min_time(NEARLY_UNCONTROLLABLE_PAIR.model, 1.0, float(p), float(v), True)
+    assert T_rigid < cert.lower_bound and T - cert.lower_bound <= 1.001e-3 * T, cert.message
+    assert f"{cert.lower_bound!r} s (weak duality" in cert.message
+    # the proof, checked by the test's own integral (expm of the augmented matrix, cells split at zeros of S)
+    assert (
+        lower_bound_gap(NEARLY_UNCONTROLLABLE_PAIR, cert.lower_bound, profile.extra["duality_costate"], use_lp=False)
+        > 0.0
+    )
