@@ -25,7 +25,9 @@ from ..linear_program import LpStatus, solve_lp
 SAMPLES = 24
 
 
-def widest_costate(system, T: float, switch_times: np.ndarray, levels: np.ndarray) -> np.ndarray | None:
+def widest_costate(
+    system, T: float, switch_times: np.ndarray, levels: np.ndarray, extra_tau: np.ndarray | None = None
+) -> np.ndarray | None:
     """A co-state direction ``nu`` (time-to-go convention of ``system.switching``) for the profile, or None.
 
     Parameters
@@ -36,6 +38,10 @@ def widest_costate(system, T: float, switch_times: np.ndarray, levels: np.ndarra
         Duration (s).
     switch_times, levels : ndarray
         The profile (forward time, s; levels ``+-u_max``).
+    extra_tau : ndarray, optional
+        More samples (time-to-go, s), e.g. where a previous answer's ``S``
+        changed sign between the regular samples (a dip narrower than their
+        spacing): cutting planes.
 
     Returns
     -------
@@ -54,6 +60,9 @@ def widest_costate(system, T: float, switch_times: np.ndarray, levels: np.ndarra
         if not b > a:
             continue
         s = np.linspace(0.0, 1.0, SAMPLES + 2)[1:-1]
+        if extra_tau is not None:
+            inside = (extra_tau - a) / (b - a)
+            s = np.concatenate([s, inside[(inside > 0.0) & (inside < 1.0)]])
         tau = a + (b - a) * s
         # S grows from a switch like the distance to it: weight the margin so
         w = np.minimum(s if k > 0 else np.ones_like(s), 1.0 - s if k < edges.size - 2 else np.ones_like(s))

@@ -36,6 +36,7 @@ from ..errors import SolverError
 from ..results import BangBangProfile, CertificateStatus, SolverPath
 from ..tolerances import GAP_RTOL
 from .costate_lp import widest_costate
+from .dual_bound import REPORT_GAPS, proved_lower_bound
 from .reachable_set import Shooting
 from .rigid_body import rigid_profile
 from .switch_newton import primal_newton, refine_switches, split_candidates
@@ -49,6 +50,11 @@ NEWTON_STEPS = 15
 #: Two candidates with durations this close (relative) and the same number of
 #: switches, every switch as close, are one.
 SAME_RTOL = 1e-9
+#: Rounds of cutting planes (samples where the last co-state's ``S`` changed sign off the
+#: switches) when the widest co-state of a structure has extra sign changes.
+CUT_ROUNDS = 3
+#: A proved zero of ``S`` farther than this (relative to ``T``) from every switch is an extra one.
+CUT_RTOL = 1e-9
 
 
 def notch_candidates(sh: Shooting, bases: list[tuple[np.ndarray, float]], T: float):
@@ -235,17 +241,76 @@ def _without_blip(problem, system, sh, roots, sign0, T, t0, T_low, assemble) -> 
     if not ok or not T_c <= T * (1.0 + GAP_RTOL):  # a certified extremal is the optimum; rounding aside
         return None
     signs = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
-    nu = widest_costate(system, T_c, np.sort(T_c - tau), problem.u_max * signs[::-1])
-    if nu is None:
+    switch_times, levels = np.sort(T_c - tau), problem.u_max * signs[::-1]
+    cuts = np.empty(0)
+    for _ in range(CUT_ROUNDS + 1):
+        nu = widest_costate(system, T_c, switch_times, levels, extra_tau=cuts)
+        if nu is None:
+            return None
+        try:
+            better = assemble(problem, system, nu, T_c, tau, signs, t0, sh.evaluations, T_low)
+        except SolverError:
+            return None
+        if better.certificate.status is CertificateStatus.OPTIMAL:
+            better.extra["solver_path"] = SolverPath.SEARCH
+            return better
+        # S of this co-state dips through zero between the LP's samples (a near-tangency of the
+        # optimum's S: the structure of a state on a plan, n - 2 switches): sample the dips, again
+        zeros = np.asarray(better.certificate.details.get("zeros_tau", np.empty(0)), float)
+        new = zeros[np.min(np.abs(zeros[:, None] - tau[None, :]), axis=1, initial=np.inf) > CUT_RTOL * T_c]
+        if new.size == 0:
+            return None
+        cuts = np.concatenate([cuts, new, 0.5 * (new[1:] + new[:-1])])
+    return None
+
+
+def duality_fallback(problem, system, profile, t0, T_low, assemble) -> BangBangProfile | None:
+    """The same profile certified by the gap to a lower bound proved by weak duality, or None.
+
+    For a profile that reaches the target but whose Pontryagin sign test
+    cannot decide (a notch of switches a microsecond wide, whose ``S`` is at
+    rounding, 8e-8 above the rigid body's bound: :func:`structure_fallback`),
+    the co-state of its switches proves by weak duality
+    (:func:`~.dual_bound.proved_lower_bound`) that no move arrives before
+    ``T (1 - GAP_RTOL / 2)``; the certificate is then ``within_gap`` with that
+    bound, as for the rigid body's.  The profile is simulated and certified
+    again (``assemble``); the path it came from is kept.  If the bound it
+    proves is farther from ``T`` but above ``T_low`` (s, the rigid body's),
+    the profile is returned uncertified with that bound in its certificate.
+    """
+    T = profile.duration
+    proof = proved_lower_bound(
+        system, problem.shifted_initial(), problem.u_max, T, profile.switch_times, profile.levels, REPORT_GAPS
+    )
+    if proof is None or not proof[0] > T_low:
         return None
+    T_dual, nu = proof  # the certificate's sign test then reports on the co-state that proves the bound
+    if T - T_dual > GAP_RTOL * T:  # not proved optimal: a better bound than the rigid body's, said so
+        cert = replace(
+            profile.certificate,
+            lower_bound=T_dual,
+            message=f"not proved optimal: within {(T - T_dual) / T:.1e} (relative) of the proved lower bound "
+            f"{T_dual!r} s (weak duality with the switches' co-state; the rigid body's is {T_low!r} s)",
+        )
+        better = replace(profile, certificate=cert)
+        better.extra.update(profile.extra)
+        better.extra["duality_bound"] = T_dual
+        better.extra["duality_costate"] = nu  # nu of the proof (the shifted system's time-to-go convention)
+        return better
+    signs = np.sign(profile.levels[::-1])
     try:
-        better = assemble(problem, system, nu, T_c, tau, signs, t0, sh.evaluations, T_low)
+        proved = assemble(problem, system, nu, T, np.sort(T - profile.switch_times), signs, t0, 0, T_dual)
     except SolverError:
         return None
-    if better.certificate.status is not CertificateStatus.OPTIMAL:
+    cert = proved.certificate
+    if not cert.passed:
         return None
-    better.extra["solver_path"] = SolverPath.SEARCH
-    return better
+    cert = replace(cert, message=f"{cert.message} (lower bound by weak duality with the switches' co-state)")
+    proved = replace(proved, certificate=cert, iterations=profile.iterations)
+    proved.extra.update(profile.extra)
+    proved.extra["duality_bound"] = T_dual
+    proved.extra["duality_costate"] = nu
+    return proved
 
 
 def refusal_reason(T_low: float, fastest_period: float = 0.0) -> str:
@@ -264,8 +329,18 @@ def refusal_reason(T_low: float, fastest_period: float = 0.0) -> str:
         if 0.0 < T_low < fastest_period
         else ""
     )
+    bound = f"the minimum time is at least {T_low:.6g} s (the rigid body's)"
+    if T_low == 0.0 and fastest_period > 0.0:
+        # a vibration alone to damp (local hypothesis seed 3: 4 modes, 1e-4 of a static deflection): every
+        # switch rings the rigid body and the quiet modes too, so many are needed in a short time, a
+        # structure of near-equal pulses whose switching function is flat to many orders
+        short = (
+            "the rigid body is already at rest where the move ends: the move only damps the vibration, and the "
+            "bang-bang input that does it must leave the rigid body and every other mode at rest as well; "
+        )
+        bound = "no lower bound on the minimum time is proved (the rigid body's is 0 s)"
     return (
-        f"{short}the minimum time is at least {T_low:.6g} s (the rigid body's); nothing is returned: plan the move "
+        f"{short}{bound}; nothing is returned: plan the move "
         "at a sample rate with method fixed_time (an arrival time of your choosing, by linear programs, without the "
         "continuous optimum; one too early is refused with the peak command it needs), or model fewer modes"
     )

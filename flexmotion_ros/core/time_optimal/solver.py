@@ -56,7 +56,7 @@ from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES
 from .certificate import certify
 from .costate_solver import BangBangSolution, smoothed_start, solve_bang_bang, solve_costate
-from .fallbacks import cluster_fallback, end_blip_fallback, refusal_reason, structure_fallback
+from .fallbacks import cluster_fallback, duality_fallback, end_blip_fallback, refusal_reason, structure_fallback
 from .lean import MAX_MODES as LEAN_MAX_MODES
 from .lean import MAX_POINTS as LEAN_MAX_POINTS
 from .lean import LeanMove, smoothed_guess, structure_from_samples
@@ -230,6 +230,8 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
             raise refusal from miss
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
         profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, _assemble) or profile
+    if not profile.certificate.passed:  # a notch whose sign is at rounding: the gap to a dual bound may prove it
+        profile = duality_fallback(problem, system, profile, t0, T_low, _assemble) or profile
     profile.extra.setdefault("solver_path", SolverPath.FULL)
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
