@@ -71,6 +71,8 @@ class Level:
         self.undecided: set[int] = set()  # counts where HiGHS gave no verdict with any method
         self.reachable: int | None = None  # from this count on the target is proved reachable (final rate)
         self.deadline = math.inf  # time.perf_counter() after which the search gives up (says so)
+        # counts proved infeasible and how: a proof stays valid after cuts (it was for a relaxation)
+        self.proofs: dict[int, ProofKind | str] = {}
 
     @property
     def full(self) -> bool:
@@ -240,6 +242,14 @@ class Level:
         (HiGHS's verdict).  The last step also runs when every sample was already
         free: its scaled LP said ``t > 1`` but a dual bound too weak to prove it.
         """
+        if K in self.proofs:
+            return self.proofs[K]
+        res = self._prove(K)
+        if res:
+            self.proofs[K] = res
+        return res
+
+    def _prove(self, K: int) -> bool | ProofKind | str | None:
         lp = self.lp
         t = self.probe(K)
         if t <= 1.0:

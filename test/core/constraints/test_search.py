@@ -156,3 +156,32 @@ def test_bench_move_at_1khz_with_all_three_limits_needs_no_wide_lp():
     assert r.extra["lower_bound_proof"] == ProofKind.DUAL
     assert max(free) < 700
     check_every_limit(problem, r, limits)
+
+
+def test_the_predicted_count_is_accepted_without_its_own_probe():
+    """At the final rate the count extrapolated from the coarser levels is not probed by itself: ``K - 1``
+    is probed in the windows mapped from the coarser level (its ``t`` above 1, and ``K``'s predicted
+    below 1 from the coarser level's slope), proved by its lifted bound, and the smooth LP at ``K`` in
+    the windows of ``K - 1``'s solution is the plan.  Before, the final rate solved a scaled LP at ``K``
+    (592 free samples here), another at ``K - 1`` and the smooth LP at ``K``: one LP of a few hundred
+    free samples more.  Same count, same proof (a weak-duality bound, itself a certificate), exact and
+    within every limit."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 500.0
+    unlimited, limits = _bench_limits(problem, rate)
+    solved = []
+    real = limit_lp.LimitLP.solve
+
+    def solve(self, K, seg=None, mode="scaled", t_fix=None):
+        if self.dt == 1.0 / rate:
+            solved.append((K, mode))
+        return real(self, K, seg, mode, t_fix)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(limit_lp.LimitLP, "solve", solve)
+        r = plan_limited_zoh(problem, rate, limits, unlimited)
+    K = r.sampled.samples
+    assert K == 2798 and r.minimal and r.lower_bound_samples == K
+    assert r.extra["lower_bound_proof"] == ProofKind.DUAL
+    assert solved == [(K - 1, "scaled"), (K, "smooth")]
+    check_every_limit(problem, r, limits)
