@@ -164,8 +164,9 @@ def test_the_predicted_count_is_accepted_without_its_own_probe():
     below 1 from the coarser level's slope), proved by its lifted bound, and the smooth LP at ``K`` in
     the windows of ``K - 1``'s solution is the plan.  Before, the final rate solved a scaled LP at ``K``
     (592 free samples here), another at ``K - 1`` and the smooth LP at ``K``: one LP of a few hundred
-    free samples more.  Same count, same proof (a weak-duality bound, itself a certificate), exact and
-    within every limit."""
+    free samples more.  The smooth LP frees 2 samples either side of ``K - 1``'s runs (166 free samples
+    here, 290 with the probes' 4).  Same count, same proof (a weak-duality bound, itself a
+    certificate), exact and within every limit."""
     problem = rest_to_rest(WB, 1.0, 2.0)
     rate = 500.0
     unlimited, limits = _bench_limits(problem, rate)
@@ -184,4 +185,5 @@ def test_the_predicted_count_is_accepted_without_its_own_probe():
     assert K == 2798 and r.minimal and r.lower_bound_samples == K
     assert r.extra["lower_bound_proof"] == ProofKind.DUAL
     assert solved == [(K - 1, "scaled"), (K, "smooth")]
+    assert r.extra["accepted_free_samples"] < 0.35 * r.extra["free_samples"]
     check_every_limit(problem, r, limits)
