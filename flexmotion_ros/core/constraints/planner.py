@@ -77,8 +77,8 @@ MAX_CUT_ROUNDS = 12
 COARSE_FACTOR = 4
 FULL_SAMPLES = 160
 #: Window half-width (samples) of the predicted count's smooth LP (:func:`_predicted`), around the runs of
-#: ``K - 1``'s solution at the same rate: 2 frees 188 samples of the bench's all-three move at 1 kHz, 0.13 s
-#: CPU, against 336 and 0.29 s with the probes' width; a sequence missing a check there is tried again
+#: ``K - 1``'s solution at the same rate: 2 frees 176 samples of the bench's all-three move at 1 kHz, 0.15 s
+#: CPU, against 336 and 0.29 s with the probes' width (4); a sequence missing a check there is tried again
 #: with the probes' width.
 ACCEPT_WIDTH = 2
 #: Times the search may re-anchor its windows on an exact optimum when they proved misleading.
@@ -200,7 +200,7 @@ def _predicted(level: Level, K: int, lo: int, slope: float | None) -> tuple | No
     """At the final rate: ``K`` (the coarser levels' prediction) accepted without its own scaled probe.
 
     The search below would probe ``K`` (windows mapped from the coarser level), then ``K - 1`` (windows of
-    that solution), prove ``K - 1`` and solve the smooth LP at ``K``: at 1 kHz four LPs of 300-600 free
+    that solution), prove ``K - 1`` and solve the smooth LP at ``K``: at 1 kHz three LPs of 300-600 free
     samples, 0.2-0.3 s each.  Here ``K - 1`` is probed first (mapped windows); if its ``t`` is above 1 and,
     with the coarser level's slope of ``t`` per sample (``slope``, scaled to this rate), ``K``'s would be
     below it, the smooth LP at ``K`` is solved in the windows of ``K - 1``'s solution.  A sequence that
@@ -217,7 +217,7 @@ def _predicted(level: Level, K: int, lo: int, slope: float | None) -> tuple | No
     t = level.probe(K - 1)
     if not (1.0 < t < math.inf and t + slope < 1.0):
         return None
-    for width in (ACCEPT_WIDTH, level.width):
+    for width in dict.fromkeys((ACCEPT_WIDTH, level.width)):  # each width once
         got = _smooth_passes(level.lp, K, map_runs(level.ref[0], level.ref[1], K, width))
         if got is not None:
             break
