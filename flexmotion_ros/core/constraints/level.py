@@ -16,7 +16,7 @@ from ..errors import SolverError, UnreachableError
 from ..model.boundary import MoveProblem
 from ..results import ProofKind
 from .certify import feasible as independent_feasible
-from .dual import dual_bound, lift, proves_infeasible
+from .dual import OWN_WEIGHT, RETRY_OWN_WEIGHT, dual_bound, lift, proves_infeasible
 from .limits import Limits
 from .lp import LimitLP, LPUndecided
 from .proof import LIFT_MAX_UNKNOWNS, LOOSEN
@@ -71,6 +71,8 @@ class Level:
         self.undecided: set[int] = set()  # counts where HiGHS gave no verdict with any method
         self.reachable: int | None = None  # from this count on the target is proved reachable (final rate)
         self.deadline = math.inf  # time.perf_counter() after which the search gives up (says so)
+        # counts proved infeasible and how: a proof stays valid after cuts (it was for a relaxation)
+        self.proofs: dict[int, ProofKind | str] = {}
 
     @property
     def full(self) -> bool:
@@ -235,11 +237,20 @@ class Level:
         for a HiGHS verdict the text ``f"{ProofKind.HIGHS} ({method})"``.
 
         In order: the weak-duality bound of the probe's LP (lifted to every sample
-        if it was a window LP), the same from wider windows, and last the
+        if it was a window LP; a second lift without the pull towards the window's
+        multipliers if the first does not prove), the same from wider windows, and last the
         feasibility LP over every sample with the limits loosened by ``LOOSEN``
         (HiGHS's verdict).  The last step also runs when every sample was already
         free: its scaled LP said ``t > 1`` but a dual bound too weak to prove it.
         """
+        if K in self.proofs:
+            return self.proofs[K]
+        res = self._prove(K)
+        if res:
+            self.proofs[K] = res
+        return res
+
+    def _prove(self, K: int) -> bool | ProofKind | str | None:
         lp = self.lp
         t = self.probe(K)
         if t <= 1.0:
@@ -252,8 +263,11 @@ class Level:
                 return ProofKind.DUAL
         else:
             liftable = K * lp.sys.n <= LIFT_MAX_UNKNOWNS
-            if liftable and proves_infeasible(dual_bound(lp, lift(lp, sol))[0]):
-                return ProofKind.DUAL
+            if liftable and any(
+                proves_infeasible(dual_bound(lp, lift(lp, sol, own_weight=w))[0])
+                for w in (OWN_WEIGHT, RETRY_OWN_WEIGHT)
+            ):
+                return ProofKind.DUAL  # the second lift (no pull towards the window's multipliers) only if needed
             # wider windows around this structure, lifted again; then every sample free
             try:
                 wide = lp.solve(K, map_runs(self.ref[0], self.ref[1], K, WIDE * max(self.width, OWN_WIDTH)))

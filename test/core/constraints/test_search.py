@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from flexmotion_ros.core import ModalModel, plan_time_optimal_zoh, rest_to_rest
+from flexmotion_ros.core import ModalModel, MoveProblem, plan_time_optimal_zoh, rest_to_rest
 from flexmotion_ros.core.constraints import dual as limit_dual
 from flexmotion_ros.core.constraints import lp as limit_lp
 from flexmotion_ros.core.constraints.level import Level
@@ -155,4 +155,84 @@ def test_bench_move_at_1khz_with_all_three_limits_needs_no_wide_lp():
     assert r.minimal and r.lower_bound_samples == 5596
     assert r.extra["lower_bound_proof"] == ProofKind.DUAL
     assert max(free) < 700
+    check_every_limit(problem, r, limits)
+
+
+def test_the_predicted_count_is_accepted_without_its_own_probe():
+    """At the final rate the count extrapolated from the coarser levels is not probed by itself: ``K - 1``
+    is probed in the windows mapped from the coarser level (its ``t`` above 1, and ``K``'s predicted
+    below 1 from the coarser level's slope), proved by its lifted bound, and the smooth LP at ``K`` in
+    the windows of ``K - 1``'s solution is the plan.  Before, the final rate solved a scaled LP at ``K``
+    (592 free samples here), another at ``K - 1`` and the smooth LP at ``K``: one LP of a few hundred
+    free samples more.  The smooth LP frees 2 samples either side of ``K - 1``'s runs (166 free samples
+    here, 290 with the probes' 4).  Same count, same proof (a weak-duality bound, itself a
+    certificate), exact and within every limit."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 500.0
+    unlimited, limits = _bench_limits(problem, rate)
+    solved = []
+    real = limit_lp.LimitLP.solve
+
+    def solve(self, K, seg=None, mode="scaled", t_fix=None):
+        if self.dt == 1.0 / rate:
+            solved.append((K, mode))
+        return real(self, K, seg, mode, t_fix)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(limit_lp.LimitLP, "solve", solve)
+        r = plan_limited_zoh(problem, rate, limits, unlimited)
+    K = r.sampled.samples
+    assert K == 2798 and r.minimal and r.lower_bound_samples == K
+    assert r.extra["lower_bound_proof"] == ProofKind.DUAL
+    assert solved == [(K - 1, "scaled"), (K, "smooth")]
+    assert r.extra["accepted_free_samples"] < 0.35 * r.extra["free_samples"]
+    check_every_limit(problem, r, limits)
+
+
+@pytest.mark.parametrize(
+    "model, u_max, goal, v_max, K",
+    [
+        # seed-18 fuzz case 7: proved fewest (4448 samples, beyond the full LP's 3000), unproved on main
+        (
+            dict(
+                b0=0.16842870118248662,
+                c=0.0,
+                omega=(0.31616055154620315, 1.3492316106148314),
+                zeta=(0.19630570728730692, 0.09662993145950094),
+                b=(0.2932579922068591, -0.1415477610749102),
+            ),
+            0.49934178911913596,
+            -16.616967412229663,
+            0.4783426956248247,
+            4448,
+        ),
+        # case 11: proved on main by the full feasibility LP and its independent confirmation (0.7 s), now 0.25 s
+        (
+            dict(
+                b0=0.14157823060148156,
+                c=0.0,
+                omega=(0.4015992887186895, 9.410446795419377),
+                zeta=(0.19929502297018856, 0.2735458585792935),
+                b=(-0.4076438146828142, 1.9643095455658757),
+            ),
+            9.019374831401256,
+            -73.57031439048997,
+            5.830228789442861,
+            1976,
+        ),
+    ],
+)
+def test_a_lift_without_the_window_pull_proves_more(model, u_max, goal, v_max, K):
+    """When the lifted bound does not prove ``K - 1``, the lift is repeated without pulling the multipliers
+    of the window LP's rows towards the window's own (a restriction: its runs share one level): on the
+    seed-18 fuzz (100 Hz, velocity limit) this proves counts the full feasibility LP proved before, or
+    that were left unproved.  The plan is the same; the proof is a weak-duality bound (a certificate
+    evaluated over every sample)."""
+    m = ModalModel(**model)
+    problem = MoveProblem(m, u_max, [0.0] * m.n_states, goal)
+    limits = Limits(velocity_max=v_max)
+    r = plan_limited_zoh(problem, 100.0, limits)
+    assert r.sampled.samples == K
+    assert r.minimal and r.lower_bound_samples == K
+    assert r.extra["lower_bound_proof"] == ProofKind.DUAL
     check_every_limit(problem, r, limits)
