@@ -231,9 +231,14 @@ def core_edges(g) -> dict[str, set[str]]:
 
 
 def test_longest_core_import_chain_is_short():
-    """Fourteen modules, a package `__init__` included (the flat layout had cycles, and 15 levels)."""
+    """Fifteen modules, a package `__init__` included.
+
+    The flat layout had cycles and 15 levels; the subpackages brought it to 14.  A file split by concept
+    (the rule of ~400 lines) adds a level where it sits on the longest chain (the method table imports
+    every planner): 15 allows that, and a tangle of helpers calling back and forth still fails.
+    """
     chain = longest_chain(core_edges(GRAPH))
-    assert len(chain) <= 14, " -> ".join(chain)
+    assert len(chain) <= 15, " -> ".join(chain)
 
 
 # ---------------------------------------------------------------- each rule catches a violation

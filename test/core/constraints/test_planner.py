@@ -30,12 +30,14 @@ from flexmotion_ros.core import (
     simulate_samples,
     state_to_rest,
 )
+from flexmotion_ros.core.constraints import accept as accept_mod
 from flexmotion_ros.core.constraints import level as limit_level
 from flexmotion_ros.core.constraints import lp as limit_lp
 from flexmotion_ros.core.constraints import planner as limits_mod
 from flexmotion_ros.core.constraints import proof as limit_proof
 from flexmotion_ros.core.constraints.limits import Limits, deflection_peaks
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.constraints.segments import Segments
 from flexmotion_ros.core.constraints.structure import map_runs, solution_runs
 from flexmotion_ros.core.errors import FlexmotionError, GoalError, SolverError
 from flexmotion_ros.core.methods.table import plan_move
@@ -465,7 +467,7 @@ def test_issue18_false_infeasibility_verdict_is_gone():
 def test_no_sequence_passing_the_checks_claims_nothing(monkeypatch):
     """Every count's sequence fails the exact checks: a SolverError that says the limits are not proved
     impossible (it said "relax the limits")."""
-    monkeypatch.setattr(limits_mod, "_accept", lambda level, K: None)
+    monkeypatch.setattr(limits_mod, "accept", lambda level, K: None)
     problem = rest_to_rest(WB, 1.0, 1.0)
     with pytest.raises(SolverError, match="exact limit checks.*not proved impossible"):
         plan_limited_zoh(problem, 10.0, Limits(velocity_max=0.35))
@@ -616,9 +618,9 @@ def test_accepted_lp_falls_back_to_the_probes_windows(monkeypatch):
 
     def one_run(level, K):  # every sample but the ends at one level: the target cannot be reached
         tried.append(K)
-        return limits_mod.Segments.from_runs(K, [(1, K - 1, 0.0)])
+        return Segments.from_runs(K, [(1, K - 1, 0.0)])
 
-    monkeypatch.setattr(limits_mod, "_narrow_segments", one_run)
+    monkeypatch.setattr(accept_mod, "narrow_segments", one_run)
     r = plan_limited_zoh(problem, rate, limits, unlimited)
     assert tried == [before.sampled.samples]
     assert r.sampled.samples == before.sampled.samples and r.minimal == before.minimal
