@@ -58,11 +58,14 @@ class Extremal:
         n = sysf.n
         Lam = np.eye(n)
         out = [None] * len(run.segments)
+        lengths = run.lengths if len(run.lengths) == len(run.segments) else None
         for i in range(len(run.segments) - 1, -1, -1):
             t0, t1, mode, level = run.segments[i]
             if mode == STICK:
                 return None
-            Lam = sysf.transition(t1 - t0).T @ Lam
+            # the run's own step length: its step matrices are cached (t1 - t0 may differ in the last bit
+            # and cost a second closed form per segment, a fifth of a Newton residual)
+            Lam = sysf.transition(lengths[i] if lengths is not None else t1 - t0).T @ Lam
             out[i] = Lam
             if i > 0 and run.segments[i - 1][2] != mode:  # a reversal at t0: saltation matrix
                 xc = run.starts[i]

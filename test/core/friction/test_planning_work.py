@@ -13,8 +13,14 @@ import numpy as np
 from scipy import sparse
 
 from flexmotion_ros.core import ModalModel, MoveProblem
-from flexmotion_ros.core.friction import continuation, plan_time_optimal_friction, sampled_lp, simulate_coulomb
-from flexmotion_ros.core.friction.contact import FrictionSystem
+from flexmotion_ros.core.friction import (
+    continuation,
+    extremal,
+    plan_time_optimal_friction,
+    sampled_lp,
+    simulate_coulomb,
+)
+from flexmotion_ros.core.friction.contact import ClosedForm, FrictionSystem
 from flexmotion_ros.core.friction.continuation import continue_in_friction
 from flexmotion_ros.core.friction.sampled_lp import FrictionLP
 from flexmotion_ros.core.friction.time_optimal import frictionless_scales
@@ -208,3 +214,34 @@ def test_the_updated_newton_certifies_an_extremal_the_differenced_one_missed():
     scale = np.max(np.abs(full - xf), axis=0) + 1e-300
     assert np.max(np.abs(x - xf) / scale) < 1e-8
     assert prof.lower_bound is None or prof.duration >= prof.lower_bound
+
+
+# ------------------------------------ issue 18, third pass: where the continuation cannot reach the force
+def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
+    """Before: the costate sweep of a Newton residual formed ``e^{A h}`` for ``h = t1 - t0`` of every segment, which
+    differs from the run's own step in the last bit: a second closed form per segment.  Now the run records its step
+    lengths and the sweep's matrices are the run's (cache hits), the same sensitivities to rounding."""
+    problem, F = fuzz_2()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    ext = extremal.Extremal(problem, np.asarray(base.levels, float), F, scale)
+    y = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
+    t_sw, T, lam = ext.unpack(y)
+    run = ext.sys.run(problem.x0, PiecewiseConstant.from_switches(t_sw, ext.levels, T), [T], lock_after=float(t_sw[-1]))
+    misses = []
+    real = ClosedForm.steps
+
+    def counting(self, h):
+        if h not in self._cache:
+            misses.append(h)
+        return real(self, h)
+
+    monkeypatch.setattr(ClosedForm, "steps", counting)
+    Lams = ext.costates(run, lam)
+    assert not misses and len(run.segments) >= 3
+    assert len(run.lengths) == len(run.segments)
+    for (t0, t1, _, _), h in zip(run.segments, run.lengths):
+        assert h > 0.0 and abs(t0 + h - t1) <= 1e-15 * T
+    # the sweep is the product of the run's own transition matrices (and the identity at T)
+    sysf = ext.sys
+    assert np.array_equal(Lams[-1], sysf.fast.steps(run.lengths[-1])[0].T)
