@@ -10,16 +10,19 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import sparse
 
 from flexmotion_ros.core import ModalModel, MoveProblem
 from flexmotion_ros.core.friction import (
+    certificate,
     continuation,
     extremal,
     plan_time_optimal_friction,
     sampled_lp,
     simulate_coulomb,
 )
+from flexmotion_ros.core.friction.certificate import FrictionStatus
 from flexmotion_ros.core.friction.contact import ClosedForm, FrictionSystem
 from flexmotion_ros.core.friction.continuation import continue_in_friction
 from flexmotion_ros.core.friction.sampled_lp import FrictionLP
@@ -217,6 +220,73 @@ def test_the_updated_newton_certifies_an_extremal_the_differenced_one_missed():
 
 
 # ------------------------------------ issue 18, third pass: where the continuation cannot reach the force
+def fuzz_59():
+    """Seed-18 fuzz case 59 (1 mode): Newton converges at ``F`` at once, but ``B^T lambda`` changes sign where no
+    switch is; the move with the new switch does not converge (the optimum rests on the way)."""
+    m = ModalModel(
+        b0=0.25144518333834454, c=0.0, omega=(5.105498837600142,), zeta=(0.08731335399612714,), b=(-1.1734925738186242,)
+    )
+    u_max = 0.19470289959806864
+    return MoveProblem(m, u_max, [0.0] * m.n_states, 0.00011437653063550585), 0.22845336361740354 * u_max
+
+
+def _exact_runs(monkeypatch):
+    """A list that gets one entry per Newton residual that runs (one exact friction run each; past its budget a
+    residual answers None without a run)."""
+    runs = []
+    real = extremal.Extremal.residual
+
+    def counting(self, *args, **kwargs):
+        if self.budget is None or self.budget[0] > 0:
+            runs.append(1)
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(extremal.Extremal, "residual", counting)
+    return runs
+
+
+def test_continuation_stops_after_two_failed_solves_in_a_row(monkeypatch):
+    """Fuzz case 3: before, the solves at F, F / 2 and F / 4 all failed (48 exact runs); now the continuation stops
+    after the second failure in a row (no continuation of seed-18 cases 0-299 that reached F had two)."""
+    problem, F = fuzz_3()
+    out, solves = _continuation_solves(problem, F, monkeypatch)
+    assert out is None
+    assert len(solves) == 2  # was 3
+    assert continuation.MAX_FAILS_IN_A_ROW == 2
+    assert not any(converged for converged, _ in solves)
+
+
+def test_switch_consistency_re_solves_are_capped(monkeypatch):
+    """Fuzz case 59: before, the re-solve with the switches moved to the sign changes of ``B^T lambda`` spent the
+    rest of the continuation's 48 exact runs (37) and failed; now each re-solve gets ``RESOLVE_EVALS`` of them
+    (1 of 73 such re-solves in seed-18 cases 0-299 converged, in 6), a failed one counts as a failed solve, and
+    the plan is the same exact sampled move."""
+    problem, F = fuzz_59()
+    runs = _exact_runs(monkeypatch)
+    re_solves = []
+    real = certificate.newton_solve
+
+    def spy(*args, **kwargs):
+        before = len(runs)
+        out = real(*args, **kwargs)
+        re_solves.append((out[0], len(runs) - before))
+        return out
+
+    monkeypatch.setattr(certificate, "newton_solve", spy)
+    out, solves = _continuation_solves(problem, F, monkeypatch)
+    assert out is None
+    assert solves and all(converged for converged, _ in solves)  # Newton converged; the switches did not agree
+    assert re_solves and all(not ok and n <= 10 for ok, n in re_solves)  # was one re-solve of 37 runs
+    assert len(re_solves) <= continuation.MAX_FAILS_IN_A_ROW
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.duration == pytest.approx(0.43, abs=1e-12)
+    assert prof.certificate.status is FrictionStatus.SAMPLED_PATTERN
+    xf = problem.model.rest_state(problem.target)
+    x = simulate_coulomb(problem.model, problem.x0, prof.input(), F, [prof.duration, 2.0 * prof.duration + 1.0])
+    assert np.max(np.abs(x - xf)) <= 1e-8 * abs(problem.target)
+    assert np.max(np.abs(prof.levels)) <= problem.u_max
+
+
 def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
     """Before: the costate sweep of a Newton residual formed ``e^{A h}`` for ``h = t1 - t0`` of every segment, which
     differs from the run's own step in the last bit: a second closed form per segment.  Now the run records its step
