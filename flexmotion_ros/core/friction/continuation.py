@@ -61,12 +61,19 @@ def continue_in_friction(
     done, step, solves = 0.0, F, 0
     ext = None
     failed = 0  # failed solves in a row
+    block = None  # the switching rows' differenced columns to start the next solve from (Broyden across solves)
     while ext is None or done < F:
         if solves >= max_solves or budget[0] <= 0 or failed >= MAX_FAILS_IN_A_ROW:
             return None
         F_try = min(F, done + step)
-        ok, ext_new, y_new = newton_solve(problem, levels, F_try, scale, y, MAX_ITER, budget, LINE_SEARCH_TRIALS)
+        ok, ext_new, y_new = newton_solve(
+            problem, levels, F_try, scale, y, MAX_ITER, budget, LINE_SEARCH_TRIALS, block=block
+        )
         solves += 1
+        # the next solve starts where this one did (after a failure) or ended (after a success, same switches):
+        # the differences in the L + 1 switch times were a third of a continuation's exact runs
+        nxt = ext_new.block_last if ok else ext_new.block_first
+        block = nxt if nxt is not None else (None if ok else block)
         if ok:
             # converged; where B^T lambda changes sign where no switch is, a re-solve with the new structure
             # (a failure counts as a failed solve: the structure changes before F_try, and a smaller step may

@@ -38,6 +38,13 @@ class Extremal:
         self.sig_scale = 1.0
         #: Residual evaluations left (shared by the caller across solves: a list of one int); None: no limit.
         self.budget: list[int] | None = None
+        #: The switching rows' columns in ``(t_j, T)`` (unscaled) to start :meth:`newton` from: an earlier
+        #: solve's (None: differences).
+        self.block_start: np.ndarray | None = None
+        #: After :meth:`newton` (unscaled): the block differenced at its starting point (None if it started from
+        #: ``block_start`` or had no reversal) and the block of its last iterate.
+        self.block_first: np.ndarray | None = None
+        self.block_last: np.ndarray | None = None
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -136,6 +143,11 @@ class Extremal:
         sw = slice(nI, nI + L)  # the switching rows
         block = None  # their columns in (t_j, T) by differences, or updated along the steps (Broyden)
         fresh = False
+        if self.block_start is not None and self.block_start.shape == (L, nz):
+            # an earlier solve's block (the continuation's last force, or a failed solve's start): treated as an
+            # updated one, so a step it misleads takes the differences again
+            block = self.block_start / self.sig_scale
+        at_start = True
         refreshed = 0  # differences taken again after an updated block's step failed (at most once a solve)
         for _ in range(max_iter):
             if rn <= NEWTON_TOL:
@@ -158,6 +170,8 @@ class Extremal:
                         return False, y, rn
                     J[sw, j] = (rp - r)[sw] / (yp[j] - y[j])
                 block, fresh = J[sw, :nz].copy(), True
+                if at_start:
+                    self.block_first = block * self.sig_scale
             elif reversals and L:
                 J[sw, :nz] = block  # the differences of an earlier iterate, updated by the steps since
             step, *_ = np.linalg.lstsq(J, -r, rcond=None)
@@ -191,6 +205,8 @@ class Extremal:
             y = yc
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))
+            at_start = False
+            self.block_last = None if block is None else block * self.sig_scale
         return rn <= NEWTON_TOL, y, rn
 
 
@@ -209,14 +225,16 @@ def newton_solve(
     max_iter: int = 20,
     budget: list[int] | None = None,
     halvings: int = LINE_SEARCH_HALVINGS,
+    block: np.ndarray | None = None,
 ) -> tuple[bool, Extremal, np.ndarray]:
     """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
 
     ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place);
-    ``halvings``: see :meth:`Extremal.newton`.
+    ``halvings``: see :meth:`Extremal.newton`; ``block``: see :attr:`Extremal.block_start`.
     """
     ext = Extremal(problem, levels, F, scale)
     ext.budget = budget
+    ext.block_start = block
     ext.sig_scale = sigma_scale(ext, y)
     ok, y_new, _ = ext.newton(y, max_iter=max_iter, halvings=halvings)
     return ok, ext, y_new

@@ -315,3 +315,25 @@ def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
     # the sweep is the product of the run's own transition matrices (and the identity at T)
     sysf = ext.sys
     assert np.array_equal(Lams[-1], sysf.fast.steps(run.lengths[-1])[0].T)
+
+
+def test_a_solve_started_from_an_earlier_block_skips_the_differences(monkeypatch):
+    """Fuzz case 2: the continuation's next solve starts from the previous solve's differenced switching columns
+    (Broyden across solves: differenced again only where a step fails).  From the frictionless optimum at ``F``
+    again with the first solve's block: the same extremal in fewer exact runs (no L + 1 differences)."""
+    problem, F = fuzz_2()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    levels = np.asarray(base.levels, float)
+    y0 = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
+    runs = _exact_runs(monkeypatch)
+    ok1, ext1, y1 = extremal.newton_solve(problem, levels, F, scale, y0, budget=[48], halvings=3)
+    first = len(runs)
+    assert ok1 and ext1.block_first is not None and ext1.block_first.shape == (ext1.L, ext1.L + 1)
+    ok2, ext2, y2 = extremal.newton_solve(
+        problem, levels, F, scale, y0, budget=[48], halvings=3, block=ext1.block_first
+    )
+    second = len(runs) - first
+    assert ok2 and ext2.block_first is None  # no differences at the start
+    assert second <= first - ext1.L  # (L + 1 differences saved, give or take a line-search trial)
+    assert np.allclose(y2, y1, rtol=1e-9, atol=1e-12 * np.max(np.abs(y1)))
