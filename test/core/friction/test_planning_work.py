@@ -18,6 +18,7 @@ from flexmotion_ros.core.friction import (
     certificate,
     continuation,
     extremal,
+    pattern_search,
     plan_time_optimal_friction,
     sampled_lp,
     simulate_coulomb,
@@ -337,3 +338,54 @@ def test_a_solve_started_from_an_earlier_block_skips_the_differences(monkeypatch
     assert ok2 and ext2.block_first is None  # no differences at the start
     assert second <= first - ext1.L  # (L + 1 differences saved, give or take a line-search trial)
     assert np.allclose(y2, y1, rtol=1e-9, atol=1e-12 * np.max(np.abs(y1)))
+
+
+def fuzz_41():
+    """Seed-18 fuzz case 41 (4 modes, c = 0): its count search at 0.17 s samples probes counts near 62."""
+    m = ModalModel(
+        b0=1.84916349532185,
+        c=0.0,
+        omega=(0.6088781094104881, 1.9155854623425015, 2.5018157748938226, 5.173572720946352),
+        zeta=(0.29433346250130293, 0.244042055301409, 0.2975567414616436, 0.01338970225000503),
+        b=(-1.8410536927437477, 1.886742123085353, -0.8058056550129307, -1.6326457074709795),
+    )
+    u_max = 0.1617941799213381
+    return MoveProblem(m, u_max, [0.0] * m.n_states, 2.998892594812966), 0.1073952239425012 * u_max
+
+
+def _signed_lps(lp: FrictionLP) -> list:
+    """A list that gets one entry per LP of ``lp`` solved with sign rows."""
+    signed = []
+    real = lp.solve
+
+    def counting(K, s, signs=True, *args, **kwargs):
+        if signs:
+            signed.append(K)
+        return real(K, s, signs, *args, **kwargs)
+
+    lp.solve = counting
+    return signed
+
+
+def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_rows():
+    """Fuzz case 41: the fixed point of the pattern solves each candidate with sign rows; where the same LP
+    without them (a relaxation: its least peak a lower bound) already needs more than ``u_max``, the signed LP
+    cannot be of use to the count search, and is no longer solved.  Counts 55-69: the same answer wherever one
+    within ``u_max`` exists, 11 signed LPs instead of 25."""
+    problem, F = fuzz_41()
+    um = problem.u_max * (1.0 + 1e-12)
+    before, after = 0, 0
+    for K in range(55, 70):
+        s0 = np.ones(K)
+        lp_ref = FrictionLP(problem, F, 0.17, monotone_rows=True)
+        ref_lps = _signed_lps(lp_ref)
+        ref = pattern_search.consistent_pattern(lp_ref, K, s0)
+        lp_new = FrictionLP(problem, F, 0.17, monotone_rows=True)
+        new_lps = _signed_lps(lp_new)
+        new = pattern_search.consistent_pattern(lp_new, K, s0, peak_max=um)
+        before, after = before + len(ref_lps), after + len(new_lps)
+        if new is None:
+            assert ref is not None and ref.t > um  # nothing within u_max was left out
+        else:
+            assert ref is not None and new.t == ref.t and np.array_equal(new.u, ref.u)
+    assert after <= before - 10, (before, after)  # 11 of 25
