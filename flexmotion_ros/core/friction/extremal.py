@@ -95,10 +95,9 @@ class Extremal:
         Lams = self.costates(run, lam)
         if Lams is None:
             return None
-        starts = np.array([seg[0] for seg in run.segments])
+        at = segment_at(run, t_sw)
         rows = []
-        for tj in t_sw:
-            i = int(np.argmin(np.abs(starts - tj)))
+        for i in at:
             rows.append(self.sys.B @ Lams[i])
         rows = np.array(rows).reshape(self.L, -1)
         sigma = rows @ lam / self.sig_scale
@@ -113,12 +112,12 @@ class Extremal:
         nI, L, A, B = self.I.size, self.L, self.sys.A, self.sys.B
         J = np.zeros((r.size, L + 1 + nI))
         dx = np.empty((self.sys.n, L + 1))
-        for j in range(L):
-            i = int(np.argmin(np.abs(starts - t_sw[j])))
+        AB, ATlam = A @ B, A.T @ lam
+        for j, i in enumerate(at):
             dx[:, j] = Lams[i].T @ B * (self.levels[j] - self.levels[j + 1])
             lam_j = Lams[i] @ lam
-            J[nI + j, j] = -float((A @ B) @ lam_j) / self.sig_scale
-            J[nI + j, L] = float((Lams[i].T @ B) @ (A.T @ lam)) / self.sig_scale
+            J[nI + j, j] = -float(AB @ lam_j) / self.sig_scale
+            J[nI + j, L] = float((Lams[i].T @ B) @ ATlam) / self.sig_scale
         dx[:, L] = fT
         J[:nI, : L + 1] = dx[self.I] / self.s[self.I, None]
         J[-1, : L + 1] = (lam @ A) @ dx
@@ -208,6 +207,26 @@ class Extremal:
             at_start = False
             self.block_last = None if block is None else block * self.sig_scale
         return rn <= NEWTON_TOL, y, rn
+
+
+def segment_at(run: FrictionRun, times: np.ndarray) -> list[int]:
+    """Index of the segment of ``run`` that starts nearest each of ``times`` (s), the first of equals.
+
+    A switch time is a break of the input, so a segment starts exactly there: looked up, not searched (the
+    search, ``argmin |starts - t|``, stays for a time that is not a segment start)."""
+    first: dict[float, int] = {}
+    for i, seg in enumerate(run.segments):
+        first.setdefault(seg[0], i)
+    out = []
+    starts = None
+    for t in np.asarray(times, float).tolist():
+        i = first.get(t)
+        if i is None:
+            if starts is None:
+                starts = np.array([seg[0] for seg in run.segments])
+            i = int(np.argmin(np.abs(starts - t)))
+        out.append(i)
+    return out
 
 
 def sigma_scale(ext: Extremal, y: np.ndarray) -> float:

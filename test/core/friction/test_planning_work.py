@@ -389,3 +389,20 @@ def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_row
         else:
             assert ref is not None and new.t == ref.t and np.array_equal(new.u, ref.u)
     assert after <= before - 10, (before, after)  # 11 of 25
+
+
+def test_switch_segments_are_looked_up_not_searched():
+    """A Newton residual found the segment starting at each switch by ``argmin |starts - t_j|`` (twice per switch);
+    a switch is a break of the input, so a segment starts exactly there: a lookup, the same indices.  A time that
+    is no segment start still gets the nearest one."""
+    problem, F = fuzz_117()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    ext = extremal.Extremal(problem, np.asarray(base.levels, float), F, scale)
+    t_sw, T = np.asarray(base.switch_times, float), base.duration
+    run = ext.sys.run(problem.x0, PiecewiseConstant.from_switches(t_sw, ext.levels, T), [T], lock_after=float(t_sw[-1]))
+    starts = np.array([seg[0] for seg in run.segments])
+    assert len(run.segments) > t_sw.size  # reversals split the arcs
+    assert extremal.segment_at(run, t_sw) == [int(np.argmin(np.abs(starts - t))) for t in t_sw]
+    odd = 0.5 * (starts[1:] + starts[:-1]) + 1e-3 * np.diff(starts)
+    assert extremal.segment_at(run, odd) == [int(np.argmin(np.abs(starts - t))) for t in odd]
