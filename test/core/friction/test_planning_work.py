@@ -231,19 +231,10 @@ def fuzz_59():
     return MoveProblem(m, u_max, [0.0] * m.n_states, 0.00011437653063550585), 0.22845336361740354 * u_max
 
 
-def _exact_runs(monkeypatch):
-    """A list that gets one entry per Newton residual that runs (one exact friction run each; past its budget a
-    residual answers None without a run)."""
-    runs = []
-    real = extremal.Extremal.residual
-
-    def counting(self, *args, **kwargs):
-        if self.budget is None or self.budget[0] > 0:
-            runs.append(1)
-        return real(self, *args, **kwargs)
-
-    monkeypatch.setattr(extremal.Extremal, "residual", counting)
-    return runs
+def _exact_runs(spy) -> list:
+    """A list that gets True per Newton residual that runs (one exact friction run each; past its budget a
+    residual answers None without a run) and False per one that does not: count with ``sum``."""
+    return spy(extremal.Extremal, "residual", lambda self, *args, **kwargs: self.budget is None or self.budget[0] > 0)
 
 
 def test_continuation_stops_after_two_failed_solves_in_a_row(monkeypatch):
@@ -257,23 +248,23 @@ def test_continuation_stops_after_two_failed_solves_in_a_row(monkeypatch):
     assert not any(converged for converged, _ in solves)
 
 
-def test_switch_consistency_re_solves_are_capped(monkeypatch):
+def test_switch_consistency_re_solves_are_capped(monkeypatch, spy):
     """Fuzz case 59: before, the re-solve with the switches moved to the sign changes of ``B^T lambda`` spent the
     rest of the continuation's 48 exact runs (37) and failed; now each re-solve gets ``RESOLVE_EVALS`` of them
     (1 of 73 such re-solves in seed-18 cases 0-299 converged, in 6), a failed one counts as a failed solve, and
     the plan is the same exact sampled move."""
     problem, F = fuzz_59()
-    runs = _exact_runs(monkeypatch)
+    runs = _exact_runs(spy)
     re_solves = []
     real = certificate.newton_solve
 
-    def spy(*args, **kwargs):
-        before = len(runs)
+    def recording(*args, **kwargs):  # (converged, exact runs) of each re-solve
+        before = sum(runs)
         out = real(*args, **kwargs)
-        re_solves.append((out[0], len(runs) - before))
+        re_solves.append((out[0], sum(runs) - before))
         return out
 
-    monkeypatch.setattr(certificate, "newton_solve", spy)
+    monkeypatch.setattr(certificate, "newton_solve", recording)
     out, solves = _continuation_solves(problem, F, monkeypatch)
     assert out is None
     assert solves and all(converged for converged, _ in solves)  # Newton converged; the switches did not agree
@@ -288,7 +279,7 @@ def test_switch_consistency_re_solves_are_capped(monkeypatch):
     assert np.max(np.abs(prof.levels)) <= problem.u_max
 
 
-def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
+def test_costate_sweep_reuses_the_runs_step_matrices(spy):
     """Before: the costate sweep of a Newton residual formed ``e^{A h}`` for ``h = t1 - t0`` of every segment, which
     differs from the run's own step in the last bit: a second closed form per segment.  Now the run records its step
     lengths and the sweep's matrices are the run's (cache hits), the same sensitivities to rounding."""
@@ -299,17 +290,9 @@ def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
     y = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
     t_sw, T, lam = ext.unpack(y)
     run = ext.sys.run(problem.x0, PiecewiseConstant.from_switches(t_sw, ext.levels, T), [T], lock_after=float(t_sw[-1]))
-    misses = []
-    real = ClosedForm.steps
-
-    def counting(self, h):
-        if h not in self._cache:
-            misses.append(h)
-        return real(self, h)
-
-    monkeypatch.setattr(ClosedForm, "steps", counting)
+    new = spy(ClosedForm, "steps", lambda self, h: h not in self._cache)  # True: a closed form not cached
     Lams = ext.costates(run, lam)
-    assert not misses and len(run.segments) >= 3
+    assert len(new) >= len(run.segments) >= 3 and not any(new)
     assert len(run.lengths) == len(run.segments)
     for (t0, t1, _, _), h in zip(run.segments, run.lengths):
         assert h > 0.0 and abs(t0 + h - t1) <= 1e-15 * T
@@ -318,7 +301,7 @@ def test_costate_sweep_reuses_the_runs_step_matrices(monkeypatch):
     assert np.array_equal(Lams[-1], sysf.fast.steps(run.lengths[-1])[0].T)
 
 
-def test_a_solve_started_from_an_earlier_block_skips_the_differences(monkeypatch):
+def test_a_solve_started_from_an_earlier_block_skips_the_differences(spy):
     """Fuzz case 2: the continuation's next solve starts from the previous solve's differenced switching columns
     (Broyden across solves: differenced again only where a step fails).  From the frictionless optimum at ``F``
     again with the first solve's block: the same extremal in fewer exact runs (no L + 1 differences)."""
@@ -327,14 +310,14 @@ def test_a_solve_started_from_an_earlier_block_skips_the_differences(monkeypatch
     scale, _ = frictionless_scales(problem, base)
     levels = np.asarray(base.levels, float)
     y0 = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
-    runs = _exact_runs(monkeypatch)
+    runs = _exact_runs(spy)
     ok1, ext1, y1 = extremal.newton_solve(problem, levels, F, scale, y0, budget=[48], halvings=3)
-    first = len(runs)
+    first = sum(runs)
     assert ok1 and ext1.block_first is not None and ext1.block_first.shape == (ext1.L, ext1.L + 1)
     ok2, ext2, y2 = extremal.newton_solve(
         problem, levels, F, scale, y0, budget=[48], halvings=3, block=ext1.block_first
     )
-    second = len(runs) - first
+    second = sum(runs) - first
     assert ok2 and ext2.block_first is None  # no differences at the start
     assert second <= first - ext1.L  # (L + 1 differences saved, give or take a line-search trial)
     assert np.allclose(y2, y1, rtol=1e-9, atol=1e-12 * np.max(np.abs(y1)))
@@ -353,21 +336,12 @@ def fuzz_41():
     return MoveProblem(m, u_max, [0.0] * m.n_states, 2.998892594812966), 0.1073952239425012 * u_max
 
 
-def _signed_lps(lp: FrictionLP) -> list:
-    """A list that gets one entry per LP of ``lp`` solved with sign rows."""
-    signed = []
-    real = lp.solve
-
-    def counting(K, s, signs=True, *args, **kwargs):
-        if signs:
-            signed.append(K)
-        return real(K, s, signs, *args, **kwargs)
-
-    lp.solve = counting
-    return signed
+def _with_signs(K, s, signs=True, *args, **kwargs) -> bool:
+    """Whether a :meth:`FrictionLP.solve` call is of the LP with sign rows."""
+    return bool(signs)
 
 
-def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_rows():
+def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_rows(spy):
     """Fuzz case 41: the fixed point of the pattern solves each candidate with sign rows; where the same LP
     without them (a relaxation: its least peak a lower bound) already needs more than ``u_max``, the signed LP
     cannot be of use to the count search, and is no longer solved.  Counts 55-69: the same answer wherever one
@@ -378,12 +352,12 @@ def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_row
     for K in range(55, 70):
         s0 = np.ones(K)
         lp_ref = FrictionLP(problem, F, 0.17, monotone_rows=True)
-        ref_lps = _signed_lps(lp_ref)
+        ref_lps = spy(lp_ref, "solve", _with_signs)
         ref = pattern_search.consistent_pattern(lp_ref, K, s0)
         lp_new = FrictionLP(problem, F, 0.17, monotone_rows=True)
-        new_lps = _signed_lps(lp_new)
+        new_lps = spy(lp_new, "solve", _with_signs)
         new = pattern_search.consistent_pattern(lp_new, K, s0, peak_max=um)
-        before, after = before + len(ref_lps), after + len(new_lps)
+        before, after = before + sum(ref_lps), after + sum(new_lps)
         if new is None:
             assert ref is not None and ref.t > um  # nothing within u_max was left out
         else:
