@@ -23,7 +23,7 @@ from ..simulation.exact import PiecewiseConstant
 from ..simulation.modal_response import ModalResponse
 from ..time_optimal.switching import isolate_roots, sample_grid
 from ..tolerances import HAMILTONIAN_TOL, SWITCH_RESIDUAL_TOL
-from .extremal import Extremal, newton_solve
+from .extremal import LINE_SEARCH_HALVINGS, Extremal, newton_solve
 
 CLAIM = (
     "Pontryagin extremal of the piecewise-linear friction system (hybrid maximum principle, costate jumps at "
@@ -260,9 +260,21 @@ CONSISTENCY_ROUNDS = 4
 
 
 def consistent_switches(
-    problem: MoveProblem, ext: Extremal, y: np.ndarray, F: float, scale: np.ndarray, budget: list[int] | None = None
+    problem: MoveProblem,
+    ext: Extremal,
+    y: np.ndarray,
+    F: float,
+    scale: np.ndarray,
+    budget: list[int] | None = None,
+    resolve_evals: int | None = None,
+    halvings: int = LINE_SEARCH_HALVINGS,
 ) -> tuple[Extremal, np.ndarray] | None:
-    """Move the switches to the sign changes of ``B^T lambda`` and re-solve until they agree; None if not."""
+    """Move the switches to the sign changes of ``B^T lambda`` and re-solve until they agree; None if not.
+
+    ``budget``: residual evaluations left, shared with the caller (``[n]``, decremented in place);
+    ``resolve_evals``: at most this many of them for each re-solve (None: no cap of its own);
+    ``halvings``: line-search trials of the re-solves (see :meth:`~.extremal.Extremal.newton`).
+    """
     for _ in range(CONSISTENCY_ROUNDS):
         zeros, sign0 = switching_zeros(ext, y)
         if zeros is None:
@@ -270,7 +282,15 @@ def consistent_switches(
         if same_switches(zeros, ext.unpack(y)[0], y[ext.L]):
             return ext, y
         levels = problem.u_max * sign0 * (1.0 - 2.0 * (np.arange(zeros.size + 1) % 2))
-        ok, ext, y = newton_solve(problem, levels, F, scale, np.concatenate([zeros, y[ext.L :]]), budget=budget)
+        local = budget
+        if resolve_evals is not None:
+            local = [resolve_evals if budget is None else min(resolve_evals, budget[0])]
+        left = local[0] if local is not None else 0
+        ok, ext, y = newton_solve(
+            problem, levels, F, scale, np.concatenate([zeros, y[ext.L :]]), budget=local, halvings=halvings
+        )
+        if budget is not None and local is not budget:
+            budget[0] -= left - local[0]
         if not ok:
             return None
     return None

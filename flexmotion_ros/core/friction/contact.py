@@ -80,6 +80,9 @@ class FrictionRun:
     segments: list = field(default_factory=list)
     events: list = field(default_factory=list)
     starts: list = field(default_factory=list)  # state at the start of each segment
+    #: The step length (s) each segment was propagated by: ``t1 - t0`` can differ from it in the last bit,
+    #: and the step matrices are cached per length (the costate sweep then reuses the run's own).
+    lengths: list = field(default_factory=list)
 
 
 class FrictionSystem:
@@ -234,13 +237,13 @@ class FrictionSystem:
         levels, breaks = u.levels.tolist(), u.breaks.tolist()
         targets, rows = times[order].tolist(), order.tolist()
         n_levels, unit, C = len(levels), self.unit, self.contact.C
-        starts, segments, events = [], [], []
+        starts, segments, events, lengths = [], [], [], []
         k = 0
         level = float(levels[0]) if n_levels else 0.0
         y = float(C @ x)
         mode = int(np.sign(y)) if y != 0.0 else self.mode_at_rest(x, level)
         t = 0.0
-        run = FrictionRun(out, segments, events, starts)
+        run = FrictionRun(out, segments, events, starts, lengths)
         ti, n_times = 0, len(targets)
         while ti < n_times:
             target = targets[ti]
@@ -261,6 +264,7 @@ class FrictionSystem:
                 starts.append(x.copy())
                 x = self.advance(x, level, mode, step)
                 segments.append((t, t + step, mode, level))
+                lengths.append(step)
                 t = t + step if tau is not None and tau < h else seg_end
                 if tau is not None:
                     if mode == STICK:
@@ -303,6 +307,9 @@ class ClosedForm:
         self._half_wd = 0.5 * r.wd
         self._w2 = r.w**2
         self._diag = 2 + 2 * np.arange(r.w.size)
+        i, n = self._diag, self.n
+        # flat indices of the modal 2 x 2 blocks of Phi, in the order :meth:`steps` forms their entries
+        self._blocks = np.concatenate([i * n + i, i * n + i + 1, (i + 1) * n + i, (i + 1) * n + i + 1])
 
     def steps(self, h: float):
         """``(Phi, Gam, Gg)`` for a step of ``h`` seconds: ``e^{A h}``, ``int_0^h e^{A s} B ds`` and the
@@ -334,12 +341,12 @@ class ClosedForm:
             E = np.exp(self._neg_sig * h)
             arg = r.wd * h
             C, S = np.cos(arg), np.sin(arg)
-            i = self._diag
             s_wd = self._s_wd
-            Phi[i, i] = E * (C + s_wd * S)
-            Phi[i, i + 1] = E * S / r.wd
-            Phi[i + 1, i] = -E * self._w2 / r.wd * S
-            Phi[i + 1, i + 1] = E * (C - s_wd * S)
+            sS = s_wd * S
+            ES_wd = E * S / r.wd
+            # the four entries of every block in one assignment (the same operations as one assignment
+            # each: (-E * w2) / wd * S as -E * w2 / wd * S)
+            Phi.flat[self._blocks] = np.concatenate([E * (C + sS), ES_wd, -E * self._w2 / r.wd * S, E * (C - sS)])
             half = np.sin(self._half_wd * h)
             one_minus = -np.expm1(self._neg_sig * h) + 2.0 * E * half * half - E * s_wd * S
             Gam[2::2] = r.bm * one_minus / self._w2

@@ -38,6 +38,13 @@ class Extremal:
         self.sig_scale = 1.0
         #: Residual evaluations left (shared by the caller across solves: a list of one int); None: no limit.
         self.budget: list[int] | None = None
+        #: The switching rows' columns in ``(t_j, T)`` (unscaled) to start :meth:`newton` from: an earlier
+        #: solve's (None: differences).
+        self.block_start: np.ndarray | None = None
+        #: After :meth:`newton` (unscaled): the block differenced at its starting point (None if it started from
+        #: ``block_start`` or had no reversal) and the block of its last iterate.
+        self.block_first: np.ndarray | None = None
+        self.block_last: np.ndarray | None = None
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -58,11 +65,14 @@ class Extremal:
         n = sysf.n
         Lam = np.eye(n)
         out = [None] * len(run.segments)
+        lengths = run.lengths if len(run.lengths) == len(run.segments) else None
         for i in range(len(run.segments) - 1, -1, -1):
             t0, t1, mode, level = run.segments[i]
             if mode == STICK:
                 return None
-            Lam = sysf.transition(t1 - t0).T @ Lam
+            # the run's own step length: its step matrices are cached (t1 - t0 may differ in the last bit
+            # and cost a second closed form per segment, a fifth of a Newton residual)
+            Lam = sysf.transition(lengths[i] if lengths is not None else t1 - t0).T @ Lam
             out[i] = Lam
             if i > 0 and run.segments[i - 1][2] != mode:  # a reversal at t0: saltation matrix
                 xc = run.starts[i]
@@ -85,10 +95,9 @@ class Extremal:
         Lams = self.costates(run, lam)
         if Lams is None:
             return None
-        starts = np.array([seg[0] for seg in run.segments])
+        at = segment_at(run, t_sw)
         rows = []
-        for tj in t_sw:
-            i = int(np.argmin(np.abs(starts - tj)))
+        for i in at:
             rows.append(self.sys.B @ Lams[i])
         rows = np.array(rows).reshape(self.L, -1)
         sigma = rows @ lam / self.sig_scale
@@ -103,12 +112,12 @@ class Extremal:
         nI, L, A, B = self.I.size, self.L, self.sys.A, self.sys.B
         J = np.zeros((r.size, L + 1 + nI))
         dx = np.empty((self.sys.n, L + 1))
-        for j in range(L):
-            i = int(np.argmin(np.abs(starts - t_sw[j])))
+        AB, ATlam = A @ B, A.T @ lam
+        for j, i in enumerate(at):
             dx[:, j] = Lams[i].T @ B * (self.levels[j] - self.levels[j + 1])
             lam_j = Lams[i] @ lam
-            J[nI + j, j] = -float((A @ B) @ lam_j) / self.sig_scale
-            J[nI + j, L] = float((Lams[i].T @ B) @ (A.T @ lam)) / self.sig_scale
+            J[nI + j, j] = -float(AB @ lam_j) / self.sig_scale
+            J[nI + j, L] = float((Lams[i].T @ B) @ ATlam) / self.sig_scale
         dx[:, L] = fT
         J[:nI, : L + 1] = dx[self.I] / self.s[self.I, None]
         J[-1, : L + 1] = (lam @ A) @ dx
@@ -133,6 +142,11 @@ class Extremal:
         sw = slice(nI, nI + L)  # the switching rows
         block = None  # their columns in (t_j, T) by differences, or updated along the steps (Broyden)
         fresh = False
+        if self.block_start is not None and self.block_start.shape == (L, nz):
+            # an earlier solve's block (the continuation's last force, or a failed solve's start): treated as an
+            # updated one, so a step it misleads takes the differences again
+            block = self.block_start / self.sig_scale
+        at_start = True
         refreshed = 0  # differences taken again after an updated block's step failed (at most once a solve)
         for _ in range(max_iter):
             if rn <= NEWTON_TOL:
@@ -155,6 +169,8 @@ class Extremal:
                         return False, y, rn
                     J[sw, j] = (rp - r)[sw] / (yp[j] - y[j])
                 block, fresh = J[sw, :nz].copy(), True
+                if at_start:
+                    self.block_first = block * self.sig_scale
             elif reversals and L:
                 J[sw, :nz] = block  # the differences of an earlier iterate, updated by the steps since
             step, *_ = np.linalg.lstsq(J, -r, rcond=None)
@@ -188,7 +204,29 @@ class Extremal:
             y = yc
             r, J, reversals = oc
             rn = float(np.max(np.abs(r)))
+            at_start = False
+            self.block_last = None if block is None else block * self.sig_scale
         return rn <= NEWTON_TOL, y, rn
+
+
+def segment_at(run: FrictionRun, times: np.ndarray) -> list[int]:
+    """Index of the segment of ``run`` that starts nearest each of ``times`` (s), the first of equals.
+
+    A switch time is a break of the input, so a segment starts exactly there: looked up, not searched (the
+    search, ``argmin |starts - t|``, stays for a time that is not a segment start)."""
+    first: dict[float, int] = {}
+    for i, seg in enumerate(run.segments):
+        first.setdefault(seg[0], i)
+    out = []
+    starts = None
+    for t in np.asarray(times, float).tolist():
+        i = first.get(t)
+        if i is None:
+            if starts is None:
+                starts = np.array([seg[0] for seg in run.segments])
+            i = int(np.argmin(np.abs(starts - t)))
+        out.append(i)
+    return out
 
 
 def sigma_scale(ext: Extremal, y: np.ndarray) -> float:
@@ -206,14 +244,16 @@ def newton_solve(
     max_iter: int = 20,
     budget: list[int] | None = None,
     halvings: int = LINE_SEARCH_HALVINGS,
+    block: np.ndarray | None = None,
 ) -> tuple[bool, Extremal, np.ndarray]:
     """Newton on the extremal conditions for ``levels`` from ``y``: ``(converged, extremal, y)``.
 
     ``budget``: residual evaluations left, shared across solves (``[n]``, decremented in place);
-    ``halvings``: see :meth:`Extremal.newton`.
+    ``halvings``: see :meth:`Extremal.newton`; ``block``: see :attr:`Extremal.block_start`.
     """
     ext = Extremal(problem, levels, F, scale)
     ext.budget = budget
+    ext.block_start = block
     ext.sig_scale = sigma_scale(ext, y)
     ok, y_new, _ = ext.newton(y, max_iter=max_iter, halvings=halvings)
     return ok, ext, y_new

@@ -19,9 +19,14 @@ from .sampled_lp import FrictionLP, FrictionSolution
 
 #: Fixed-point iterations of the velocity-sign pattern.
 PATTERN_ROUNDS = 3
+#: Relative margin above ``peak_max`` before a relaxation's least peak rules a signed LP out (both are HiGHS
+#: optima to its 1e-10 feasibility tolerance).
+RELAXED_MARGIN = 1e-8
 
 
-def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = False) -> FrictionSolution | None:
+def consistent_pattern(
+    lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = False, peak_max: float = math.inf
+) -> FrictionSolution | None:
     """A pattern consistent with its own least-peak move (fixed point from ``s0``), solved with sign rows.
 
     The fixed point moves reversals to where the move made with the previous
@@ -34,15 +39,22 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = Fal
     instead (pattern 0: stuck, ``|u| <= F``), and every pattern of the
     iteration is solved with sign rows (the smallest peak wins): for moves
     that must rest on the way while the modes are steered.
+
+    ``peak_max``: a candidate whose LP without sign rows (a relaxation: the same LP with fewer conditions, so
+    its least peak is a lower bound) already needs more than this is not solved with sign rows (the caller
+    has no use for a solution above it); None is returned if no candidate is left.
     """
     if stick:
         return stick_pattern(lp, K, s0)
     s = np.asarray(s0, float).copy()
     seen = []
+    relaxed: dict[bytes, float] = {}  # least peak without sign rows, by pattern
     for _ in range(PATTERN_ROUNDS):
         sol = lp.solve(K, s, signs=False)
         if sol is None:
+            relaxed[s.tobytes()] = math.inf  # no solution without sign rows: none with them
             break
+        relaxed[s.tobytes()] = sol.t
         nxt = lp.pattern_of(sol.u, s)
         if np.array_equal(nxt, s) or any(np.array_equal(nxt, p) for p in seen):
             break
@@ -52,6 +64,8 @@ def consistent_pattern(lp: FrictionLP, K: int, s0: np.ndarray, stick: bool = Fal
     for cand in (s, np.asarray(s0, float)):
         if best is not None and np.array_equal(cand, best.pattern):
             continue
+        if relaxed.get(cand.tobytes(), -math.inf) > peak_max * (1.0 + RELAXED_MARGIN):
+            continue  # its signed LP's peak is at least the relaxation's (seed-18 fuzz: one LP of ~10 a search)
         sol = lp.solve(K, cand, signs=True)
         if sol is not None and (best is None or sol.t < best.t):
             best = sol
@@ -149,7 +163,7 @@ def fastest_samples(
         return feasible(tried[K])
 
     def fixed_point(K: int) -> bool:
-        sol = consistent_pattern(lp, K, template_pattern(state["template"], K), stick)
+        sol = consistent_pattern(lp, K, template_pattern(state["template"], K), stick, peak_max=um)
         if not feasible(sol):
             return False
         tried[K] = sol

@@ -10,11 +10,21 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import sparse
 
 from flexmotion_ros.core import ModalModel, MoveProblem
-from flexmotion_ros.core.friction import continuation, plan_time_optimal_friction, sampled_lp, simulate_coulomb
-from flexmotion_ros.core.friction.contact import FrictionSystem
+from flexmotion_ros.core.friction import (
+    certificate,
+    continuation,
+    extremal,
+    pattern_search,
+    plan_time_optimal_friction,
+    sampled_lp,
+    simulate_coulomb,
+)
+from flexmotion_ros.core.friction.certificate import FrictionStatus
+from flexmotion_ros.core.friction.contact import ClosedForm, FrictionSystem
 from flexmotion_ros.core.friction.continuation import continue_in_friction
 from flexmotion_ros.core.friction.sampled_lp import FrictionLP
 from flexmotion_ros.core.friction.time_optimal import frictionless_scales
@@ -208,3 +218,165 @@ def test_the_updated_newton_certifies_an_extremal_the_differenced_one_missed():
     scale = np.max(np.abs(full - xf), axis=0) + 1e-300
     assert np.max(np.abs(x - xf) / scale) < 1e-8
     assert prof.lower_bound is None or prof.duration >= prof.lower_bound
+
+
+# ------------------------------------ issue 18, third pass: where the continuation cannot reach the force
+def fuzz_59():
+    """Seed-18 fuzz case 59 (1 mode): Newton converges at ``F`` at once, but ``B^T lambda`` changes sign where no
+    switch is; the move with the new switch does not converge (the optimum rests on the way)."""
+    m = ModalModel(
+        b0=0.25144518333834454, c=0.0, omega=(5.105498837600142,), zeta=(0.08731335399612714,), b=(-1.1734925738186242,)
+    )
+    u_max = 0.19470289959806864
+    return MoveProblem(m, u_max, [0.0] * m.n_states, 0.00011437653063550585), 0.22845336361740354 * u_max
+
+
+def _exact_runs(spy) -> list:
+    """A list that gets True per Newton residual that runs (one exact friction run each; past its budget a
+    residual answers None without a run) and False per one that does not: count with ``sum``."""
+    return spy(extremal.Extremal, "residual", lambda self, *args, **kwargs: self.budget is None or self.budget[0] > 0)
+
+
+def test_continuation_stops_after_two_failed_solves_in_a_row(monkeypatch):
+    """Fuzz case 3: before, the solves at F, F / 2 and F / 4 all failed (48 exact runs); now the continuation stops
+    after the second failure in a row (no continuation of seed-18 cases 0-299 that reached F had two)."""
+    problem, F = fuzz_3()
+    out, solves = _continuation_solves(problem, F, monkeypatch)
+    assert out is None
+    assert len(solves) == 2  # was 3
+    assert continuation.MAX_FAILS_IN_A_ROW == 2
+    assert not any(converged for converged, _ in solves)
+
+
+def test_switch_consistency_re_solves_are_capped(monkeypatch, spy):
+    """Fuzz case 59: before, the re-solve with the switches moved to the sign changes of ``B^T lambda`` spent the
+    rest of the continuation's 48 exact runs (37) and failed; now each re-solve gets ``RESOLVE_EVALS`` of them
+    (1 of 73 such re-solves in seed-18 cases 0-299 converged, in 6), a failed one counts as a failed solve, and
+    the plan is the same exact sampled move."""
+    problem, F = fuzz_59()
+    runs = _exact_runs(spy)
+    re_solves = []
+    real = certificate.newton_solve
+
+    def recording(*args, **kwargs):  # (converged, exact runs) of each re-solve
+        before = sum(runs)
+        out = real(*args, **kwargs)
+        re_solves.append((out[0], sum(runs) - before))
+        return out
+
+    monkeypatch.setattr(certificate, "newton_solve", recording)
+    out, solves = _continuation_solves(problem, F, monkeypatch)
+    assert out is None
+    assert solves and all(converged for converged, _ in solves)  # Newton converged; the switches did not agree
+    assert re_solves and all(not ok and n <= 10 for ok, n in re_solves)  # was one re-solve of 37 runs
+    assert len(re_solves) <= continuation.MAX_FAILS_IN_A_ROW
+    prof = plan_time_optimal_friction(problem, F, 100.0)
+    assert prof.duration == pytest.approx(0.43, abs=1e-12)
+    assert prof.certificate.status is FrictionStatus.SAMPLED_PATTERN
+    xf = problem.model.rest_state(problem.target)
+    x = simulate_coulomb(problem.model, problem.x0, prof.input(), F, [prof.duration, 2.0 * prof.duration + 1.0])
+    assert np.max(np.abs(x - xf)) <= 1e-8 * abs(problem.target)
+    assert np.max(np.abs(prof.levels)) <= problem.u_max
+
+
+def test_costate_sweep_reuses_the_runs_step_matrices(spy):
+    """Before: the costate sweep of a Newton residual formed ``e^{A h}`` for ``h = t1 - t0`` of every segment, which
+    differs from the run's own step in the last bit: a second closed form per segment.  Now the run records its step
+    lengths and the sweep's matrices are the run's (cache hits), the same sensitivities to rounding."""
+    problem, F = fuzz_2()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    ext = extremal.Extremal(problem, np.asarray(base.levels, float), F, scale)
+    y = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
+    t_sw, T, lam = ext.unpack(y)
+    run = ext.sys.run(problem.x0, PiecewiseConstant.from_switches(t_sw, ext.levels, T), [T], lock_after=float(t_sw[-1]))
+    new = spy(ClosedForm, "steps", lambda self, h: h not in self._cache)  # True: a closed form not cached
+    Lams = ext.costates(run, lam)
+    assert len(new) >= len(run.segments) >= 3 and not any(new)
+    assert len(run.lengths) == len(run.segments)
+    for (t0, t1, _, _), h in zip(run.segments, run.lengths):
+        assert h > 0.0 and abs(t0 + h - t1) <= 1e-15 * T
+    # the sweep is the product of the run's own transition matrices (and the identity at T)
+    sysf = ext.sys
+    assert np.array_equal(Lams[-1], sysf.fast.steps(run.lengths[-1])[0].T)
+
+
+def test_a_solve_started_from_an_earlier_block_skips_the_differences(spy):
+    """Fuzz case 2: the continuation's next solve starts from the previous solve's differenced switching columns
+    (Broyden across solves: differenced again only where a step fails).  From the frictionless optimum at ``F``
+    again with the first solve's block: the same extremal in fewer exact runs (no L + 1 differences)."""
+    problem, F = fuzz_2()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    levels = np.asarray(base.levels, float)
+    y0 = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
+    runs = _exact_runs(spy)
+    ok1, ext1, y1 = extremal.newton_solve(problem, levels, F, scale, y0, budget=[48], halvings=3)
+    first = sum(runs)
+    assert ok1 and ext1.block_first is not None and ext1.block_first.shape == (ext1.L, ext1.L + 1)
+    ok2, ext2, y2 = extremal.newton_solve(
+        problem, levels, F, scale, y0, budget=[48], halvings=3, block=ext1.block_first
+    )
+    second = sum(runs) - first
+    assert ok2 and ext2.block_first is None  # no differences at the start
+    assert second <= first - ext1.L  # (L + 1 differences saved, give or take a line-search trial)
+    assert np.allclose(y2, y1, rtol=1e-9, atol=1e-12 * np.max(np.abs(y1)))
+
+
+def fuzz_41():
+    """Seed-18 fuzz case 41 (4 modes, c = 0): its count search at 0.17 s samples probes counts near 62."""
+    m = ModalModel(
+        b0=1.84916349532185,
+        c=0.0,
+        omega=(0.6088781094104881, 1.9155854623425015, 2.5018157748938226, 5.173572720946352),
+        zeta=(0.29433346250130293, 0.244042055301409, 0.2975567414616436, 0.01338970225000503),
+        b=(-1.8410536927437477, 1.886742123085353, -0.8058056550129307, -1.6326457074709795),
+    )
+    u_max = 0.1617941799213381
+    return MoveProblem(m, u_max, [0.0] * m.n_states, 2.998892594812966), 0.1073952239425012 * u_max
+
+
+def _with_signs(K, s, signs=True, *args, **kwargs) -> bool:
+    """Whether a :meth:`FrictionLP.solve` call is of the LP with sign rows."""
+    return bool(signs)
+
+
+def test_a_pattern_whose_relaxation_is_past_the_peak_is_not_solved_with_sign_rows(spy):
+    """Fuzz case 41: the fixed point of the pattern solves each candidate with sign rows; where the same LP
+    without them (a relaxation: its least peak a lower bound) already needs more than ``u_max``, the signed LP
+    cannot be of use to the count search, and is no longer solved.  Counts 55-69: the same answer wherever one
+    within ``u_max`` exists, 11 signed LPs instead of 25."""
+    problem, F = fuzz_41()
+    um = problem.u_max * (1.0 + 1e-12)
+    before, after = 0, 0
+    for K in range(55, 70):
+        s0 = np.ones(K)
+        lp_ref = FrictionLP(problem, F, 0.17, monotone_rows=True)
+        ref_lps = spy(lp_ref, "solve", _with_signs)
+        ref = pattern_search.consistent_pattern(lp_ref, K, s0)
+        lp_new = FrictionLP(problem, F, 0.17, monotone_rows=True)
+        new_lps = spy(lp_new, "solve", _with_signs)
+        new = pattern_search.consistent_pattern(lp_new, K, s0, peak_max=um)
+        before, after = before + sum(ref_lps), after + sum(new_lps)
+        if new is None:
+            assert ref is not None and ref.t > um  # nothing within u_max was left out
+        else:
+            assert ref is not None and new.t == ref.t and np.array_equal(new.u, ref.u)
+    assert after <= before - 10, (before, after)  # 11 of 25
+
+
+def test_switch_segments_are_looked_up_not_searched():
+    """A Newton residual found the segment starting at each switch by ``argmin |starts - t_j|`` (twice per switch);
+    a switch is a break of the input, so a segment starts exactly there: a lookup, the same indices.  A time that
+    is no segment start still gets the nearest one."""
+    problem, F = fuzz_117()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    ext = extremal.Extremal(problem, np.asarray(base.levels, float), F, scale)
+    t_sw, T = np.asarray(base.switch_times, float), base.duration
+    run = ext.sys.run(problem.x0, PiecewiseConstant.from_switches(t_sw, ext.levels, T), [T], lock_after=float(t_sw[-1]))
+    starts = np.array([seg[0] for seg in run.segments])
+    assert len(run.segments) > t_sw.size  # reversals split the arcs
+    assert extremal.segment_at(run, t_sw) == [int(np.argmin(np.abs(starts - t))) for t in t_sw]
+    odd = 0.5 * (starts[1:] + starts[:-1]) + 1e-3 * np.diff(starts)
+    assert extremal.segment_at(run, odd) == [int(np.argmin(np.abs(starts - t))) for t in odd]
