@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import SolverError
 from ..results import BangBangProfile, CertificateStatus, SolverPath
-from ..tolerances import GAP_RTOL
+from ..tolerances import GAP_RTOL, SWITCH_TIME_RTOL
 from .costate_lp import widest_costate
 from .dual_bound import REPORT_GAPS, proved_lower_bound
 from .reachable_set import Shooting
@@ -180,9 +180,17 @@ def structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, ass
     for T_c, tau, sign0 in notch_candidates(sh, bases, T):
         signs_c = sign0 * (1.0 - 2.0 * (np.arange(tau.size + 1) % 2))
         ok, tau2, nuh2, T2, _ = refine_switches(sh, tau, sign0, nuh, T_c)
+        kept = without_rounding_pairs(tau2, T2) if ok else tau2
+        signs2 = signs_c
+        if kept.size < tau2.size:
+            # converged with a pair of switches merged by rounding (a zero-width blip the certificate
+            # rejects): the extremal without it, Newton again (issue 15: a replan 1e-6 off the plan, whose
+            # notch candidates converged to the optimum's 7 switches plus such a pair, none certified)
+            ok, tau2, nuh2, T2, _ = refine_switches(sh, kept, sign0, nuh2, T2)
+            signs2 = sign0 * (1.0 - 2.0 * (np.arange(tau2.size + 1) % 2))
         if ok:
             try:
-                profile = assemble(problem, system, nuh2 / sh.s, T2, tau2, signs_c, t0, sh.evaluations, T_low)
+                profile = assemble(problem, system, nuh2 / sh.s, T2, tau2, signs2, t0, sh.evaluations, T_low)
             except SolverError:
                 profile = None
             if profile is not None and profile.certificate.passed:
@@ -204,6 +212,26 @@ def structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, ass
     profile = replace(best, certificate=cert)
     profile.extra["solver_path"] = SolverPath.SEARCH
     return profile
+
+
+def without_rounding_pairs(tau: np.ndarray, T: float) -> np.ndarray:
+    """``tau`` (switch times-to-go, s, ascending) without interior pairs closer than ``SWITCH_TIME_RTOL T``.
+
+    Such a pair is two roots of ``S`` merged by rounding, not a structure an
+    extremal has (the certificate rejects it); removing both keeps the levels
+    around it.  Neighbours are paired from the smallest ``tau``; a switch at
+    an end of ``(0, T)`` is left (removing it would change a boundary level).
+    """
+    tol = SWITCH_TIME_RTOL * T
+    keep = np.ones(tau.size, dtype=bool)
+    k = 0
+    while k < tau.size - 1:
+        if tau[k + 1] - tau[k] <= tol and tau[k] > tol and T - tau[k + 1] > tol:
+            keep[k : k + 2] = False
+            k += 2
+        else:
+            k += 1
+    return tau[keep]
 
 
 def end_blip_fallback(problem, system, sh, profile, t0, T_low, assemble) -> BangBangProfile | None:

@@ -142,8 +142,17 @@ def _viscous_solution(
 
         # beyond settling (~1/|c|) p1 drifts at |w|: the switch is within reach of that
         horizon = max(T, t1, 1.0) + 50.0 / -c + 2.0 * (abs(p) + abs(v) / -c) / abs(w)
-        # uniform and geometric points: short moves switch within a tiny window
-        ts = np.unique(np.concatenate([np.linspace(0.0, horizon, 2001), np.geomspace(horizon * 1e-12, horizon, 2001)]))
+        # uniform and geometric points: short moves switch within a tiny window; the switch is admissible
+        # only once the first arc's velocity has crossed zero (at ``t0``), and the root can lie a tiny time
+        # after it (a target just short of where full braking stops: 0.017 m of a 6380 m stop from 812 m/s,
+        # 0.05 s past t0 = 25.6 s; the grid's 0.47 s steps straddled t0 and the root, and the scan took a
+        # 276 s root of the other order, which missed the target): geometric points after t0 too
+        after = np.empty(0)
+        if v != w and 0.0 < w / (w - v) < 1.0:
+            after = math.log(w / (w - v)) / c + np.geomspace(horizon * 1e-15, horizon, 201)
+        ts = np.unique(
+            np.concatenate([np.linspace(0.0, horizon, 2001), np.geomspace(horizon * 1e-12, horizon, 2001), after])
+        )
         g, _, adm = gap(ts)
         ok = adm[:-1] & adm[1:] & ((g[:-1] == 0.0) | (g[:-1] * g[1:] < 0.0))
         for i in np.flatnonzero(ok):
@@ -160,7 +169,7 @@ def _viscous_solution(
             t_sw = 0.5 * (lo + hi)
             total = t_sw + float(gap(t_sw)[1])
             if best is None or total < best[0]:
-                best = (total, t_sw, -s)
+                best = (float(total), float(t_sw), -s)
         # a start on the switching curve (one braking arc lands on the target): its root is at t = 0,
         # within rounding, and the scan brackets none when rounding puts it at t < 0; the stop time is
         # then the optimum (no move to rest is shorter than braking at full force)

@@ -106,8 +106,22 @@ ON_THE_LAST_ARC_1_MODE = _replan_case(
 )  # fmt: skip
 
 
+#: Issue 15 (local profile): a 3-mode replan 1e-6 off the plan whose optimum is the plan's 5 switches plus a
+#: notch 8.3e-7 s wide; warm and cold answered a longer two-notch profile, uncertified (test_replan_near_plan).
+NOTCH_OFF_THE_PLAN = _replan_case(
+    ModalModel(
+        b0=-1.1793313452201026, c=-1.810671309517325, omega=(1.324036616198607, 4.185381281225221, 8.875024825684761),
+        zeta=(0.0, 0.0, 0.0), b=(-0.10000230261160267, 5.6993183398173315, 1.0471285480508996),
+    ),
+    4.4436592357864715, -4.08805022028747, 1.3988000457239473,
+    [-2.0810110497829446, -0.5232849315462116, -0.2732687141046324, -0.07521451556182501,
+     -2.3163896945032856, -11.767041504628402, -0.22152251501909875, 0.3250798367185648],
+)  # fmt: skip
+
+
 @settings(max_examples=30, **SETTINGS)
 @given(replans())
+@example(NOTCH_OFF_THE_PLAN)
 @example(ON_THE_LAST_ARC)
 @example(ON_THE_LAST_ARC_1_MODE)
 @example(END_BLIP_WITHIN_GAP)
