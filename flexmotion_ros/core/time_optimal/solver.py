@@ -32,7 +32,7 @@ fallbacks (:mod:`.fallbacks`).  ``profile.extra["solver_path"]`` says which
 answered.
 
 Every candidate of every stage goes through the same check
-(:func:`_assemble`): the final state by matrix-exponential
+(:func:`.assembly.assemble`): the final state by matrix-exponential
 simulation, optimality by the Pontryagin certificate
 (:mod:`flexmotion_ros.core.time_optimal.certificate`).  A profile whose final
 state misses the target is never returned.
@@ -48,13 +48,11 @@ import numpy as np
 
 from ..errors import SolverError
 from ..model.boundary import MoveProblem
-from ..results import BangBangProfile, Certificate, CertificateStatus, SolverPath, optimal_or_zeros
-from ..simulation.error_scale import relative_final_state_error
-from ..simulation.exact import PiecewiseConstant, simulate
+from ..results import BangBangProfile, CertificateStatus, SolverPath, optimal_or_zeros
 from ..simulation.modal_response import ModalResponse
 from ..simulation.prepared import PreparedMove, prepare
 from ..tolerances import AT_REST, FINAL_STATE_RTOL, MAX_SWITCHES
-from .certificate import certify
+from .assembly import assemble
 from .costate_solver import BangBangSolution, smoothed_start, solve_bang_bang, solve_costate
 from .fallbacks import cluster_fallback, duality_fallback, end_blip_fallback, refusal_reason, structure_fallback
 from .lean import MAX_MODES as LEAN_MAX_MODES
@@ -138,7 +136,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     system = move.response
     x0 = move.x0.copy()
     if not np.any(np.abs(x0) > AT_REST):
-        profile = _assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
+        profile = assemble(problem, system, np.zeros(system.n), 0.0, np.empty(0), np.array([1.0]), t0, 0)
         profile.extra["solver_path"] = SolverPath.AT_REST
         return profile
     rigid = rigid_profile(model, um, x0, problem.include_position)
@@ -148,7 +146,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
         nu = np.zeros(system.n)
         nu[: system.r] = rigid.nu
         roots = np.sort(T_low - rigid.switch_times)
-        profile = _assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
+        profile = assemble(problem, system, nu, T_low, roots, np.sign(rigid.levels[::-1]), t0, 0)
         profile.extra["solver_path"] = SolverPath.RIGID
         return profile
     if rigid_miss <= NEAR_RIGID:
@@ -158,7 +156,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
         sh = Shooting(system, x0, um, T_low)
         roots = np.sort(T_low - rigid.switch_times)
         signs = np.sign(rigid.levels[::-1])
-        profile = cluster_fallback(problem, system, sh, nu * sh.s, T_low, roots, signs, t0, T_low, _assemble)
+        profile = cluster_fallback(problem, system, sh, nu * sh.s, T_low, roots, signs, t0, T_low, assemble)
         if profile is not None:
             return profile
     # a first guess: the rigid time plus a quarter period of the slowest mode
@@ -166,7 +164,7 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     warm_error = None
     if warm_start is not None and FAST_PATH:
         try:
-            warm = warm_path(problem, system, x0, warm_start, t0, T_low, _assemble, WARM_TOOLS)
+            warm = warm_path(problem, system, x0, warm_start, t0, T_low, assemble, WARM_TOOLS)
         except Exception as exc:  # noqa: BLE001 - a guess only: whatever went wrong, the cold solver decides
             warm, warm_error = None, repr(exc)
         if warm is not None:
@@ -206,11 +204,11 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
     # the full solver, exactly as without the fast path (``sh`` is untouched)
     nuh, T, roots, signs, residual = solve_costate(sh, T_lb, T_init, start)
     try:
-        profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+        profile = assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
     except SolverError as miss:
-        profile = cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, _assemble)
+        profile = cluster_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, assemble)
         if profile is None:
-            profile = structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, _assemble)
+            profile = structure_fallback(problem, system, sh, nuh, T, roots, signs, t0, T_low, assemble)
         if profile is None:
             w_fast = fastest_frequency(system)
             fastest_period = 2.0 * math.pi / w_fast if w_fast > 0.0 else 0.0
@@ -229,9 +227,9 @@ def plan_time_optimal(problem: MoveProblem | PreparedMove, warm_start: WarmStart
             refusal.relative_error = getattr(miss, "relative_error", math.nan)
             raise refusal from miss
     if profile.certificate.status is CertificateStatus.FAILED:  # a blip at the end the certificate cannot prove
-        profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, _assemble) or profile
+        profile = end_blip_fallback(problem, system, sh, profile, t0, T_low, assemble) or profile
     if not profile.certificate.passed:  # a notch whose sign is at rounding: the gap to a dual bound may prove it
-        profile = duality_fallback(problem, system, profile, t0, T_low, _assemble) or profile
+        profile = duality_fallback(problem, system, profile, t0, T_low, assemble) or profile
     profile.extra.setdefault("solver_path", SolverPath.FULL)
     if fast_error is not None:  # a bug in the fast path: visible, though the answer stands
         profile.extra["fast_path_error"] = fast_error
@@ -266,7 +264,7 @@ def _fast_path(
     ``start`` (then, if that fails, of a finer smoothing level:
     :data:`FINE_SMOOTHING`), skipping the exact inner problems.  Every
     candidate goes through the same exact simulation and certificate as the
-    full solver's result (:func:`_assemble`), and is kept only if the
+    full solver's result (:func:`assemble`), and is kept only if the
     final-state check and the certificate's full sign test pass (not merely
     the gap to the rigid bound: that close to it, the full solver decides).
 
@@ -290,7 +288,7 @@ def _fast_path(
         candidates += 1
         try:
             # raises SolverError unless the final-state error is within FINAL_STATE_RTOL
-            profile = _assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
+            profile = assemble(problem, system, nuh / sh.s, T, roots, signs, t0, sh.evaluations, T_low)
         except SolverError:  # the target missed: no structure information either
             return None, None, 0.0
         cert = profile.certificate
@@ -330,7 +328,7 @@ def _lean_path(
     Guess from one smoothed level on a coarse grid, switch-time Newton with
     the structure corrections of :func:`~.structure_guess.newton_from_guess`,
     and the same exact simulation and certificate as every path
-    (:func:`_assemble`): only an ``OPTIMAL`` certificate is accepted.
+    (:func:`assemble`): only an ``OPTIMAL`` certificate is accepted.
     Only for models of at most :data:`~.lean.MAX_MODES` modes and moves whose
     coarse grid has at most :data:`~.lean.MAX_POINTS` points.
     Returns ``(profile, error)`` as :func:`_fast_path` does.
@@ -345,7 +343,7 @@ def _lean_path(
     def check(nuh, T, roots, signs):
         nonlocal candidates
         candidates += 1
-        return optimal_or_zeros(lambda: _assemble(problem, system, nuh / lm.s, T, roots, signs, t0, 0, T_low))
+        return optimal_or_zeros(lambda: assemble(problem, system, nuh / lm.s, T, roots, signs, t0, 0, T_low))
 
     try:
         nuh, T, tau, S = smoothed_guess(lm, T_low * (1.0 - 1e-12), T_init)
@@ -365,64 +363,3 @@ def _lean_path(
         profile.extra["fast_path_stage"] = "lean"
         profile.extra["fast_path_candidates"] = candidates
     return profile, None
-
-
-def _assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_low=None) -> BangBangProfile:
-    """The profile with switches at times-to-go ``roots_tau`` (s) and signs ``signs_tau``, simulated and certified.
-
-    ``nu``: the co-state direction for the certificate; ``T`` the duration
-    (s); ``t0`` the ``perf_counter`` at the start of planning; ``T_low`` a
-    proved lower bound (s) for the gap certificate.  Raises
-    :class:`SolverError` if the exact final state misses the target.
-    """
-    um = problem.u_max
-    switch_times = np.clip(np.sort(T - roots_tau), 0.0, T)
-    levels = um * signs_tau[::-1]
-    u = PiecewiseConstant.from_switches(switch_times, levels, T)
-    x0s = problem.shifted_initial()
-    states = simulate((system.A(), system.B()), x0s, u)
-    xT = states[-1]
-    scale = state_scale(system, x0s, um, T) if T > 0.0 else np.ones(xT.size)
-    err = float(np.max(np.abs(xT))) if xT.size else 0.0
-    rel = relative_final_state_error(xT, scale)
-    if T > 0.0:
-        cert = certify(system, nu, T, um, switch_times, levels, states, lower_bound=T_low)
-    else:
-        cert = Certificate(
-            passed=True,
-            costate_initial=np.zeros(system.n),
-            costate_final=np.zeros(system.n),
-            switch_residual=0.0,
-            extra_zeros=0,
-            unproved_cells=0,
-            sign_consistent=True,
-            min_margin=1.0,
-            hamiltonian_max_abs=0.0,
-            message="already at rest",
-        )
-    final_abs = _absolute_final(problem, u)
-    profile = BangBangProfile(
-        problem=problem,
-        switch_times=switch_times,
-        levels=levels,
-        duration=float(T),
-        final_state=final_abs,
-        final_state_error=err,
-        final_state_error_relative=rel,
-        certificate=cert,
-        solve_time_s=time.perf_counter() - t0,
-        iterations=evaluations,
-    )
-    if not rel <= FINAL_STATE_RTOL:
-        miss = SolverError(
-            f"time-optimal planner missed the target: relative final-state error {rel:.3e} "
-            f"(tolerance {FINAL_STATE_RTOL:.0e}); nothing is returned"
-        )
-        miss.relative_error = rel  # for a caller that words the refusal by its cause
-        raise miss
-    return profile
-
-
-def _absolute_final(problem: MoveProblem, u: PiecewiseConstant) -> np.ndarray:
-    """Final full state in absolute coordinates, by exact simulation."""
-    return simulate(problem.model, problem.x0, u, times=[u.duration])[0]

@@ -2,7 +2,7 @@
 
 The lean path is a speed-up only: whatever it returns went through the same
 exact matrix-exponential final-state check and Pontryagin certificate as
-every other path (``solver._assemble``), and it must be the same optimum as
+every other path (``assembly.assemble``), and it must be the same optimum as
 the solver without it (``time_optimal.LEAN_PATH = False``: the fast path,
 then the full solver): duration and switch times to 1e-9 of ``T``, levels
 equal.  Where it finds nothing, the planner goes on unchanged.
@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from flexmotion_ros.core import ModalModel, motion_to_rest, plan_time_optimal, rest_to_rest, state_to_rest
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
-from flexmotion_ros.core.time_optimal import lean, structure_guess
+from flexmotion_ros.core.time_optimal import assembly, lean, structure_guess
 from flexmotion_ros.core.time_optimal import solver as time_optimal
 
 from .test_solver_properties import (
@@ -158,7 +158,7 @@ def test_a_candidate_that_misses_the_target_is_not_returned(monkeypatch):
 def test_an_uncertified_candidate_is_not_returned(monkeypatch):
     """With every certificate failing, the lean path returns nothing (only the full solver answers, uncertified)."""
     problem = bench_move(1, 1.0)
-    real = time_optimal.certify
+    real = assembly.certify
     calls = []
 
     def failing(*args, **kw):
@@ -166,7 +166,7 @@ def test_an_uncertified_candidate_is_not_returned(monkeypatch):
         calls.append(cert)
         return type(cert)(**{**cert.__dict__, "passed": False, "sign_consistent": False, "message": "sabotaged"})
 
-    monkeypatch.setattr(time_optimal, "certify", failing)
+    monkeypatch.setattr(assembly, "certify", failing)
     profile = plan_time_optimal(problem)
     assert calls[0].message == "ok"  # the lean path's first candidate was the optimum ...
     assert not took_lean(profile)  # ... yet, its certificate failing, the lean path returned nothing

@@ -23,7 +23,7 @@ from flexmotion_ros.core import (
     plan_time_optimal,
     rest_to_rest,
 )
-from flexmotion_ros.core.time_optimal import costate_solver, structure_guess
+from flexmotion_ros.core.time_optimal import assembly, costate_solver, structure_guess
 from flexmotion_ros.core.time_optimal import solver as time_optimal
 
 WB = ModalModel(b0=0.5, c=0.0, omega=[np.sqrt(2.0)], zeta=[0.0], b=[1.0])
@@ -198,7 +198,7 @@ def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch
     """A candidate whose certificate fails is rejected even if it hits the target."""
     problem = rest_to_rest(beam(1), 10.0, 2.5)
     full = full_solver(problem, monkeypatch)
-    real = time_optimal.certify
+    real = assembly.certify
 
     def failing(*args, **kwargs):
         return dataclasses.replace(real(*args, **kwargs), passed=False, message="sabotaged")
@@ -217,7 +217,7 @@ def test_an_uncertified_candidate_is_never_returned_by_the_fast_path(monkeypatch
         plan_state["fast"] = False
         return real_solve(*args, **kwargs)
 
-    monkeypatch.setattr(time_optimal, "certify", spy)
+    monkeypatch.setattr(assembly, "certify", spy)
     monkeypatch.setattr(time_optimal, "solve_costate", solve)
     p = plan_time_optimal(problem)
     assert len(calls) >= 2  # the fast path's candidate was certified (and rejected)
