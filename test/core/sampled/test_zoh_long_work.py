@@ -114,3 +114,54 @@ def test_extra_samples_keeps_the_full_range_for_moves_up_to_100k_samples():
     assert zoh.extra_samples(100_000) == zoh.MAX_EXTRA_SAMPLES
     assert zoh.extra_samples(1_600_000) == 12
     assert zoh.extra_samples(5_000_000) == zoh.MIN_EXTRA_SAMPLES
+
+
+class _CountingRows(np.ndarray):
+    """Sample vectors that count the products over all their rows (``x @ G`` with ``G`` this array)."""
+
+    rows = 0
+    full = 0
+
+    def __rmatmul__(self, other):
+        if self.shape[0] == _CountingRows.rows:
+            _CountingRows.full += 1
+        return np.asarray(other) @ np.asarray(self)
+
+
+def test_the_switch_samples_of_a_long_move_sum_all_samples_once_per_count(monkeypatch):
+    # the walk's patterns each formed signs @ G over every sample (O(K n), up to 11 per count: 2 s of a
+    # 2.4e6-sample plan); past SUMMED_ROWS the sum is formed once and updated where the signs change.
+    # A 3-mode replan whose walk takes 2+ patterns (test_switch_walk), with the long-move path forced on.
+    from flexmotion_ros.core import chain, plan_time_optimal_zoh
+    from flexmotion_ros.core.sampled import switch_samples
+
+    from .test_switch_walk import STATES
+
+    model = chain([0.5] * 4, [400.0] * 3, [0.4] * 3).model
+    problem = state_to_rest(model, 10.0, np.array(STATES[0]), 2.5)
+    continuous = plan_time_optimal(problem)
+    reference = plan_time_optimal_zoh(problem, 1000.0, continuous)
+    tries = []
+    inner_seq = switch_samples._sequence_on
+
+    def counting_seq(*args, **kwargs):
+        tries.append(1)
+        return inner_seq(*args, **kwargs)
+
+    calls = []
+    inner = zoh.switch_sample_sequence
+
+    def counting(G, w, S, u_max):
+        _CountingRows.rows, _CountingRows.full = G.shape[0], 0
+        out = inner(G.view(_CountingRows), w, S, u_max)
+        calls.append(_CountingRows.full)
+        return None if out is None else np.asarray(out)
+
+    monkeypatch.setattr(switch_samples, "SUMMED_ROWS", 0, raising=False)
+    monkeypatch.setattr(switch_samples, "_sequence_on", counting_seq)
+    monkeypatch.setattr(zoh, "switch_sample_sequence", counting)
+    new = plan_time_optimal_zoh(problem, 1000.0, continuous)
+    assert len(tries) >= 2  # the walk ran: the old code summed every sample per try
+    assert calls and max(calls) == 1
+    assert new.samples == reference.samples and new.minimal == reference.minimal
+    assert np.max(np.abs(new.commands - reference.commands)) <= 1e-9 * problem.u_max
