@@ -225,6 +225,10 @@ class Outcome:
     seconds: float
     reason: str = ""
     certified: bool | None = None
+    #: With a rate: the sampled count proved fewest (``SampledProfile.minimal``); None without a sequence.
+    minimal: bool | None = None
+    #: A plan with no continuous profile (the sampled-first short moves: ``certified`` is then None).
+    no_continuous: bool = False
 
 
 def reason_key(text: str) -> str:
@@ -257,7 +261,9 @@ def run_case(method: str, case: Case, rate: float | None, timeout: float) -> Out
     if bad:
         return Outcome("check failed", dt, bad)
     cert = getattr(result.continuous, "certified", None) if result.continuous is not None else None
-    return Outcome("plan", dt, certified=cert)
+    sampled = getattr(result, "sampled", None)
+    minimal = bool(sampled.minimal) if sampled is not None and hasattr(sampled, "minimal") else None
+    return Outcome("plan", dt, certified=cert, minimal=minimal, no_continuous=result.continuous is None)
 
 
 # ----------------------------------------------------------------- report
@@ -286,6 +292,12 @@ def report(method: str, tally: Tally, show: int) -> None:
         f"(input {kinds['refusal (input)']}, solver {kinds['refusal (solver)']}), "
         f"crashes {kinds['crash']}, hangs {kinds['hang']}, check failed {kinds['check failed']}"
     )
+    sampled = [o for o in plans if o.minimal is not None]
+    if sampled:
+        print(
+            f"sampled sequences {len(sampled)}: count proved fewest {sum(1 for o in sampled if o.minimal)}, "
+            f"no continuous profile (sampled-first short moves) {sum(1 for o in plans if o.no_continuous)}"
+        )
     by_n: dict[str, list[float]] = defaultdict(list)
     for o, c in tally.outcomes:
         key = f"N={c.model.n_modes}" if c.model.n_modes <= 4 else "N=5-8"

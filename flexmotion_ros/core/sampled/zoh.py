@@ -60,6 +60,20 @@ from .peak_lp import (  # dual_bound, solve_peak_lp, window_mask: also imported 
 from .switch_samples import switch_sample_sequence
 
 MAX_EXTRA_SAMPLES = 200
+#: Work bound of the count search above ``K_lo``: at most ``SAMPLE_BUDGET / K_lo`` counts (but at least
+#: ``MIN_EXTRA_SAMPLES``, at most ``MAX_EXTRA_SAMPLES``).  Each count costs ``O(K)`` products, least-norm
+#: corrections over ``K x n`` matrices and window LPs (about 3 s CPU per count at 2.4e6 samples, a 40 min move at
+#: 1 kHz): 200 counts of such a move are many minutes.  The sampled optimum of a long move lands within a few
+#: samples of ``K_lo`` (its peak is within ~1/K of ``u_max`` there; fuzz: at most +4 at 1.6e6-2.4e6 samples).
+SAMPLE_BUDGET = 20_000_000
+MIN_EXTRA_SAMPLES = 8
+
+
+def extra_samples(K_lo: int) -> int:
+    """Counts tried above ``K_lo`` by :func:`plan_time_optimal_zoh` (the work bound of ``SAMPLE_BUDGET``)."""
+    return max(MIN_EXTRA_SAMPLES, min(MAX_EXTRA_SAMPLES, SAMPLE_BUDGET // max(K_lo, 1)))
+
+
 #: Try :func:`.switch_samples.switch_sample_sequence` before the LP at every count (False: the LP alone, as before).
 SWITCH_SAMPLES = True
 
@@ -109,8 +123,15 @@ def plan_time_optimal_zoh(
     scale = move.error_scale(K_lo * dt)
     # dual direction of the continuous optimum (nu = -lambda(T)), in scaled coordinates
     nu = -np.asarray(continuous.certificate.costate_final, dtype=float) * scale
-    found = fewest_samples(move, dt, K_lo, K_lo + MAX_EXTRA_SAMPLES, nu, continuous, t0)
+    extra = extra_samples(K_lo)
+    found = fewest_samples(move, dt, K_lo, K_lo + extra, nu, continuous, t0)
     if found is None:
+        if extra < MAX_EXTRA_SAMPLES:  # the work bound ended the search, not the range
+            raise SolverError(
+                f"sampled planner: no exact sequence at {rate:g} Hz within {extra} samples of the continuous "
+                f"optimum's {K_lo} (a {T:.3g} s move: each count costs O(samples) work and the fewest samples' "
+                "peak lies within ~1/samples of u_max); lower the rate"
+            )
         raise SolverError(
             f"sampled planner: no feasible sequence within {MAX_EXTRA_SAMPLES} samples of the continuous optimum"
         )
