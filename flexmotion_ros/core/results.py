@@ -256,6 +256,26 @@ class Certificate:
     details: dict = field(default_factory=dict)
     within_gap: bool = False
 
+    @classmethod
+    def at_rest(cls, n: int, message: str = "already at rest") -> Certificate:
+        """The certificate of a move of zero duration (nothing to switch, nothing to prove beyond the state).
+
+        ``n`` is the state size (the zero co-states' length); ``message`` says why the move is empty.
+        """
+        zeros = np.zeros(n)
+        return cls(
+            passed=True,
+            costate_initial=zeros,
+            costate_final=zeros.copy(),
+            switch_residual=0.0,
+            extra_zeros=0,
+            unproved_cells=0,
+            sign_consistent=True,
+            min_margin=1.0,
+            hamiltonian_max_abs=0.0,
+            message=message,
+        )
+
     @property
     def status(self) -> CertificateStatus:
         """What was proved: :attr:`CertificateStatus.OPTIMAL`, ``WITHIN_GAP`` or ``FAILED``.

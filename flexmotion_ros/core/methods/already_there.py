@@ -180,18 +180,7 @@ def plan_already_there(config: PlannerConfig, move: PreparedMove, rate_hz: float
         except SolverError:
             return None
         message = within_reach_message(hold.final_state_error_relative, rate)
-    certificate = Certificate(
-        passed=True,
-        costate_initial=np.zeros(move.response.n),
-        costate_final=np.zeros(move.response.n),
-        switch_residual=0.0,
-        extra_zeros=0,
-        unproved_cells=0,
-        sign_consistent=True,
-        min_margin=1.0,
-        hamiltonian_max_abs=0.0,
-        message=message,
-    )
+    certificate = Certificate.at_rest(move.response.n, message)
     continuous = BangBangProfile(
         problem=problem,
         switch_times=np.empty(0),

@@ -47,18 +47,7 @@ def assemble(problem, system, nu, T, roots_tau, signs_tau, t0, evaluations, T_lo
     if T > 0.0:
         cert = certify(system, nu, T, um, switch_times, levels, states, lower_bound=T_low)
     else:
-        cert = Certificate(
-            passed=True,
-            costate_initial=np.zeros(system.n),
-            costate_final=np.zeros(system.n),
-            switch_residual=0.0,
-            extra_zeros=0,
-            unproved_cells=0,
-            sign_consistent=True,
-            min_margin=1.0,
-            hamiltonian_max_abs=0.0,
-            message="already at rest",
-        )
+        cert = Certificate.at_rest(system.n)
     final_abs = absolute_final(problem, u)
     profile = BangBangProfile(
         problem=problem,
