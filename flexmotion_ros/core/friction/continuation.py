@@ -70,12 +70,6 @@ def continue_in_friction(
             problem, levels, F_try, scale, y, MAX_ITER, budget, LINE_SEARCH_TRIALS, block=block
         )
         solves += 1
-        if solves == 1 and not ok and ext_new.trial_runs == 0:
-            # not one trial point of the first Newton step at F was valid (steps 1, 1/2 and 1/4 all put switches
-            # out of order): to first order in F the frictionless structure ends before F / 4.  In the seed-18
-            # fuzz (cases 0-299, 2026-12-06) 53 first solves ended so and none of those continuations reached
-            # F; halving on cost 5.5 ms each
-            return None
         # the next solve starts where this one did (after a failure) or ended (after a success, same switches):
         # the differences in the L + 1 switch times were a third of a continuation's exact runs
         nxt = ext_new.block_last if ok else ext_new.block_first

@@ -45,9 +45,6 @@ class Extremal:
         #: ``block_start`` or had no reversal) and the block of its last iterate.
         self.block_first: np.ndarray | None = None
         self.block_last: np.ndarray | None = None
-        #: After :meth:`newton`: trial points its line searches evaluated (0: every trial of its first step left
-        #: the valid region -- switches out of order -- or the start could not be evaluated or differenced).
-        self.trial_runs = 0
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -136,7 +133,6 @@ class Extremal:
 
         ``halvings``: trial steps of the line search (``1, 1/2, 1/4, ...``); a Newton step whose
         ``halvings`` trials all fail to lower the residual ends the solve (not converged)."""
-        self.trial_runs = 0
         out = self.residual(y, True)
         if out is None:
             return False, y, math.inf
@@ -182,7 +178,6 @@ class Extremal:
             for _ in range(halvings):
                 yc = y + tt * step
                 if self.valid(yc):
-                    self.trial_runs += 1
                     oc = self.residual(yc, True)
                     if oc is not None and float(np.max(np.abs(oc[0]))) < rn:
                         break
