@@ -324,7 +324,7 @@ class LimitRows:
                 v_ = sgn * vals
                 v_[-1] -= 1.0
                 U.add(cols, v_, 0.0, meta=(CUT, k, i, sgn), s=s)
-        if mode == "smooth":  # the middle of every free interval (free samples are knots: no run terms)
+        if mode in ("smooth", "reach"):  # the middle of every free interval (free samples are knots: no run terms)
             s = 0.5 * self.dt
             for bi, b in enumerate(self.blocks):
                 if b.mode is None or not F.size:

@@ -109,10 +109,13 @@ class LimitLP(LimitRows):
     def solve(
         self, K: int, seg: Segments | None = None, mode: str = "scaled", t_fix: float | None = None
     ) -> LPSolution | None:
-        """Solve at ``K`` samples (``seg`` None: every sample free); ``mode`` ``"scaled"``, ``"smooth"`` or ``"feasible"``.
+        """Solve at ``K`` samples (``seg`` None: every sample free); ``mode`` ``"scaled"``, ``"smooth"``,
+        ``"feasible"`` or ``"reach"``.
 
         ``"feasible"``: any sequence meeting the limits scaled by ``t_fix`` (no
         objective, no mid-interval rows); None proves there is none.
+        ``"reach"``: the same with the smooth LP's mid-interval rows (the smooth LP's
+        constraints without its objective): None when the smooth LP has no solution.
 
         ``t_fix`` (smooth): the scale of every limit, commands included (default:
         ``1 - MARGIN`` on the state and slew limits, ``|u| <= u_max``): the

@@ -251,7 +251,7 @@ def _plan_limited(problem: MoveProblem, rate_hz: float, limits: Limits, unlimite
             # a proof without the wider fallback LP (1,048 free samples, 1.7 s); taken at K for every
             # level, the seed-18 fuzz's case 186 ended 15 samples longer (unproved either way)
             handoff = r * COARSE_FACTOR == rate
-            ref = level.reference(K if handoff or K - 1 not in level.sols else K - 1)
+            ref = level.reference(K if handoff or K - 1 not in level.sols else K - 1, reach_first=not handoff)
             seed = (level.lp.run_rows[ref[1]], ref[1]) if ref[1] in level.lp.run_rows else None
             profile = level.lp.profile
             solves += level.lp.solves

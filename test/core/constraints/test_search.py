@@ -236,3 +236,34 @@ def test_a_lift_without_the_window_pull_proves_more(model, u_max, goal, v_max, K
     assert r.minimal and r.lower_bound_samples == K
     assert r.extra["lower_bound_proof"] == ProofKind.DUAL
     check_every_limit(problem, r, limits)
+
+
+def test_a_coarse_reference_that_meets_no_sequence_costs_a_feasibility_lp_not_the_smooth_lp():
+    """The bench's all-three limits at 250 Hz: the 15.6 Hz level's reference (the smoothest sequence within
+    1e-6 of its ``t``, mid-interval rows included) has no solution, and the vertex's runs are handed on.  The
+    feasibility LP with the same rows (``mode="reach"``) says so in about half the smooth LP's time; the
+    old search solved the smooth LP there.  Its verdict is the smooth LP's (the same feasible set: checked
+    here on every reference), and the handoff level (62.5 Hz) still solves only the smooth LP (at 1 kHz its
+    reference is feasible, and the feasibility LP would cost as much as the smooth one).  Same count, same proof, exact and within every limit."""
+    problem = rest_to_rest(WB, 1.0, 2.0)
+    rate = 250.0
+    unlimited, limits = _bench_limits(problem, rate)
+    real = limit_lp.LimitLP.solve
+    solved = []
+
+    def solve(self, K, seg=None, mode="scaled", t_fix=None):
+        out = real(self, K, seg, mode, t_fix)
+        if mode in ("smooth", "reach") and t_fix is not None:  # the references (accepted LPs: t_fix None)
+            other = real(self, K, seg, "reach" if mode == "smooth" else "smooth", t_fix)
+            assert (out is None) == (other is None)
+            solved.append((round(1.0 / self.dt, 3), mode, out is None))
+        return out
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(limit_lp.LimitLP, "solve", solve)
+        r = plan_limited_zoh(problem, rate, limits, unlimited)
+    assert solved == [(15.625, "reach", True), (62.5, "smooth", True)]
+    K = r.sampled.samples
+    assert r.minimal and r.lower_bound_samples == K
+    assert r.extra["lower_bound_proof"] == ProofKind.DUAL
+    check_every_limit(problem, r, limits)
