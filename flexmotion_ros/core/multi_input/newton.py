@@ -49,12 +49,16 @@ class Setting:
 
     ``base``: a state (unscaled) added to the final state, e.g. the fixed
     contribution of inputs solved before.  The final-state equations are
-    projected on ``V`` (``V^T F = 0``) and ``nu = V y``.
+    projected on ``V`` (``V^T F = 0``) and ``nu = V y``.  ``min_norm_steps``:
+    where a Newton step fails and the Jacobian is singular, retry with the
+    minimum-norm (truncated SVD) step; a last resort, as it slows the
+    ordinary searches (more iterations on structures that are wrong anyway).
     """
 
     active: np.ndarray
     V: np.ndarray | None = None
     base: np.ndarray | None = None
+    min_norm_steps: bool = False
 
     @classmethod
     def full(cls, m: int) -> Setting:
@@ -173,10 +177,12 @@ def refine(
         if np.max(np.abs(step[:Lt]), initial=0.0) <= eps * T and abs(step[-1]) <= eps * (T if free_time else rho):
             break
         accepted = line_search(step)
-        if accepted is None:
-            # a singular Jacobian (a family of co-states: e.g. two inputs switching together with
-            # cancelling drives on a mode): the minimum-norm step on its well-determined part
-            accepted = line_search(np.linalg.lstsq(J, -r, rcond=SINGULAR_STEP_RCOND)[0])
+        if accepted is None and setting.min_norm_steps and rn > POLISH_TOL:
+            sv = np.linalg.svd(J, compute_uv=False)
+            if sv[-1] <= SINGULAR_STEP_RCOND * sv[0]:
+                # a singular Jacobian (a family of co-states: e.g. two inputs switching together with
+                # cancelling drives on a mode): the minimum-norm step on its well-determined part
+                accepted = line_search(np.linalg.lstsq(J, -r, rcond=SINGULAR_STEP_RCOND)[0])
         if accepted is None:
             break
         tau, y, T, rho, r, g, eAx, drive, rn = accepted

@@ -22,7 +22,7 @@ from ..tolerances import AT_REST
 from .dual import FINER, multi_state_scale, smoothed_time
 from .exact import system_of
 from .model import MultiModel
-from .newton import Extremal, signs_of
+from .newton import Extremal, Setting, signs_of
 from .problem import MultiMoveProblem
 from .response import MultiResponse
 from .singular import (
@@ -261,13 +261,19 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
         if ext is not None:
             found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
             break
-        # the smoothed co-state may only be approaching a singular one (T* the rigid-body bound,
-        # the modes finished by inputs the optimum does not see): that hypothesis, then the weak inputs as J
+    if found is None:
+        # the smoothed co-state may only be approaching a singular one (T* the rigid-body bound, the
+        # modes finished by inputs the optimum does not see): that hypothesis, then the weak inputs as J
         for J_near in [None, *near_singular_candidates(resp, s, nu, T)]:
             if J_near != J and (found := _with_singular(resp, x0, U, s, nuh, T, J_near)) is not None:
                 break
-        if found is not None:
-            break
+    if found is None:
+        # a family of co-states (inputs switching together with cancelling mode drives): a singular
+        # Jacobian, minimum-norm Newton steps
+        every = Setting(np.ones(resp.m, dtype=bool), min_norm_steps=True)
+        ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True, setting=every)
+        if ext is not None:
+            found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
     if found is None:
         raise SolverError(
             f"multi-input time-optimal planner: no extremal converged for inputs "
