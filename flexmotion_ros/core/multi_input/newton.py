@@ -24,6 +24,9 @@ import numpy as np
 from ..tolerances import POLISH_TOL
 from .response import MultiResponse
 
+#: Singular values below this (relative) are dropped from the fallback step of a singular Jacobian.
+SINGULAR_STEP_RCOND = 1e-10
+
 
 @dataclass
 class Extremal:
@@ -46,12 +49,16 @@ class Setting:
 
     ``base``: a state (unscaled) added to the final state, e.g. the fixed
     contribution of inputs solved before.  The final-state equations are
-    projected on ``V`` (``V^T F = 0``) and ``nu = V y``.
+    projected on ``V`` (``V^T F = 0``) and ``nu = V y``.  ``min_norm_steps``:
+    where a Newton step fails and the Jacobian is singular, retry with the
+    minimum-norm (truncated SVD) step; a last resort, as it slows the
+    ordinary searches (more iterations on structures that are wrong anyway).
     """
 
     active: np.ndarray
     V: np.ndarray | None = None
     base: np.ndarray | None = None
+    min_norm_steps: bool = False
 
     @classmethod
     def full(cls, m: int) -> Setting:
@@ -116,6 +123,28 @@ def refine(
         S = g @ (V @ y)
         return np.concatenate([F, S * gscale, [anchor @ y - 1.0]]), g, eAx, drive
 
+    def line_search(step):
+        """The first halving of ``step`` that lowers the residual and keeps the switches ordered; None if none."""
+        t = 1.0
+        for _ in range(14 if rn > POLISH_TOL else 1):
+            tau_c = tau + t * step[:Lt]
+            y_c = y + t * step[Lt : Lt + r_dim]
+            T_c = T + t * step[-1] if free_time else T
+            rho_c = rho if free_time else rho + t * step[-1]
+            ok = T_c > 0.0 and rho_c > 0.0
+            if ok:
+                for part in split(tau_c):
+                    if part.size and (part[0] <= 0.0 or part[-1] >= T_c or np.any(np.diff(part) <= 0.0)):
+                        ok = False
+                        break
+            if ok:
+                r_c, g_c, eAx_c, drive_c = residual(tau_c, y_c, T_c, rho_c)
+                rn_c = float(np.max(np.abs(r_c)))
+                if rn_c < rn:
+                    return tau_c, y_c, T_c, rho_c, r_c, g_c, eAx_c, drive_c, rn_c
+            t *= 0.5
+        return None
+
     tau = np.concatenate([roots[i] for i in range(m) if act[i]] + [np.empty(0)])
     gscale = np.ones(Lt)
     r, g, eAx, drive = residual(tau, y, T, rho)
@@ -147,27 +176,16 @@ def refine(
         eps = 4 * np.finfo(float).eps
         if np.max(np.abs(step[:Lt]), initial=0.0) <= eps * T and abs(step[-1]) <= eps * (T if free_time else rho):
             break
-        t = 1.0
-        for _ in range(14 if rn > POLISH_TOL else 1):
-            tau_c = tau + t * step[:Lt]
-            y_c = y + t * step[Lt : Lt + r_dim]
-            T_c = T + t * step[-1] if free_time else T
-            rho_c = rho if free_time else rho + t * step[-1]
-            ok = T_c > 0.0 and rho_c > 0.0
-            if ok:
-                for part in split(tau_c):
-                    if part.size and (part[0] <= 0.0 or part[-1] >= T_c or np.any(np.diff(part) <= 0.0)):
-                        ok = False
-                        break
-            if ok:
-                r_c, g_c, eAx_c, drive_c = residual(tau_c, y_c, T_c, rho_c)
-                rn_c = float(np.max(np.abs(r_c)))
-                if rn_c < rn:
-                    break
-            t *= 0.5
-        else:
+        accepted = line_search(step)
+        if accepted is None and setting.min_norm_steps and rn > POLISH_TOL:
+            sv = np.linalg.svd(J, compute_uv=False)
+            if sv[-1] <= SINGULAR_STEP_RCOND * sv[0]:
+                # a singular Jacobian (a family of co-states: e.g. two inputs switching together with
+                # cancelling drives on a mode): the minimum-norm step on its well-determined part
+                accepted = line_search(np.linalg.lstsq(J, -r, rcond=SINGULAR_STEP_RCOND)[0])
+        if accepted is None:
             break
-        tau, y, T, rho, r, g, eAx, drive, rn = tau_c, y_c, T_c, rho_c, r_c, g_c, eAx_c, drive_c, rn_c
+        tau, y, T, rho, r, g, eAx, drive, rn = accepted
     return rn <= POLISH_TOL, split(tau), V @ y, T, rho, rn
 
 

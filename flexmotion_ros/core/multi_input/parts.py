@@ -22,10 +22,16 @@ from ..tolerances import AT_REST
 from .dual import FINER, multi_state_scale, smoothed_time
 from .exact import system_of
 from .model import MultiModel
-from .newton import Extremal, signs_of
+from .newton import Extremal, Setting, signs_of
 from .problem import MultiMoveProblem
 from .response import MultiResponse
-from .singular import min_time_with_singular, peak_stages, singular_inputs
+from .singular import (
+    min_time_at_rigid_bound,
+    min_time_with_singular,
+    near_singular_candidates,
+    peak_stages,
+    singular_inputs,
+)
 from .structure import structure_newton
 
 
@@ -195,6 +201,33 @@ def zero_part(indices, problem: MultiMoveProblem) -> PartSolution:
     )
 
 
+def _with_singular(resp: MultiResponse, x0, U, s, nuh, T: float, J: list[int] | None):
+    """``(extremal, stages)`` with the inputs ``J`` singular, or None if Newton fails or ``J`` would exceed its bound.
+
+    ``J = None``: the rigid-body bound hypothesis (:func:`~.singular.min_time_at_rigid_bound`).
+    A ``J`` that needs a peak above 1 was only nearly singular (the optimal
+    co-state sees it after all): the caller goes on with the plain extremal.
+    """
+    try:
+        if J is None:
+            out = min_time_at_rigid_bound(resp, x0, U, s, nuh, T)
+        else:
+            out = min_time_with_singular(resp, x0, U, s, nuh, T, J)
+    except SolverError:
+        return None
+    if out is None or not all(st.rho <= 1.0 + 1e-9 for st in out[1]):
+        return None
+    ext, stages = out
+    if J is None:
+        J = [i for i in range(resp.m) if not np.any(resp.B0[:, i])]
+    C = [i for i in range(resp.m) if i not in J]
+    return (
+        ext,
+        [(C, ext.roots, ext.sign0, 1.0, ext.nuh)]
+        + [(st.inputs, st.roots, st.sign0, min(st.rho, 1.0), st.nuh) for st in stages],
+    )
+
+
 def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
     """Minimum-time extremal of one part (not yet checked: the caller certifies)."""
     resp = MultiResponse(problem)
@@ -221,25 +254,26 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
         tried += 1
         J = singular_inputs(resp, nu, T, np.ones(resp.m, dtype=bool))
         if J:  # inputs the optimal co-state does not see: they do not set the time
-            try:
-                out = min_time_with_singular(resp, x0, U, s, nuh, T, J)
-            except SolverError:
-                out = None
-            # only nearly singular (the optimal co-state sees them after all) if the rest needs
-            # more than their bounds: then the plain extremal below
-            if out is not None and all(st.rho <= 1.0 + 1e-9 for st in out[1]):
-                ext, stages = out
-                C = [i for i in range(resp.m) if i not in J]
-                found = (
-                    ext,
-                    [(C, ext.roots, ext.sign0, 1.0, ext.nuh)]
-                    + [(st.inputs, st.roots, st.sign0, min(st.rho, 1.0), st.nuh) for st in stages],
-                )
+            found = _with_singular(resp, x0, U, s, nuh, T, J)
+            if found is not None:
                 break
         ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True)
         if ext is not None:
             found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
             break
+    if found is None:
+        # the smoothed co-state may only be approaching a singular one (T* the rigid-body bound, the
+        # modes finished by inputs the optimum does not see): that hypothesis, then the weak inputs as J
+        for J_near in [None, *near_singular_candidates(resp, s, nu, T)]:
+            if J_near != J and (found := _with_singular(resp, x0, U, s, nuh, T, J_near)) is not None:
+                break
+    if found is None:
+        # a family of co-states (inputs switching together with cancelling mode drives): a singular
+        # Jacobian, minimum-norm Newton steps
+        every = Setting(np.ones(resp.m, dtype=bool), min_norm_steps=True)
+        ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True, setting=every)
+        if ext is not None:
+            found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
     if found is None:
         raise SolverError(
             f"multi-input time-optimal planner: no extremal converged for inputs "

@@ -39,6 +39,12 @@ SINGULAR_RTOL = 1e-7
 #: Gramian eigenvalues below this (relative to the largest) span no reachable direction.
 GRAMIAN_RTOL = 1e-12
 MAX_DEPTH = 3
+#: Inputs whose ``|S_i|`` peak stays below this fraction of the largest are tried as singular when the
+#: plain extremal fails: the smoothed dual only approaches a singular co-state (``B_i^T lambda -> 0``)
+#: as its smoothing vanishes, so an exactly singular optimum can look merely small.
+NEAR_SINGULAR_RTOL = 0.25
+#: At most this many candidate sets of nearly singular inputs per warm start.
+MAX_NEAR_SINGULAR = 4
 #: A stage whose remaining (scaled) state is below this has nothing left to do (rounding of the earlier stages).
 ZERO_REST = 1e-11
 
@@ -63,6 +69,31 @@ def singular_inputs(resp: MultiResponse, nu: np.ndarray, T: float, active) -> li
     if top <= 0.0:
         return []
     return [i for i in idx if peak[i] <= SINGULAR_RTOL * top]
+
+
+def near_singular_candidates(resp: MultiResponse, s: np.ndarray, nu: np.ndarray, T: float) -> list[list[int]]:
+    """Sets ``J`` of inputs to try as singular when neither the exact test nor the plain extremal succeeds.
+
+    Each input whose ``|S_i|`` peak is below :data:`NEAR_SINGULAR_RTOL` of the
+    largest and whose reachable subspace is not the whole state (else no
+    co-state can be orthogonal to it), weakest first; then the weakest ones
+    together.  A wrong guess is harmless: the others' minimum time is then a
+    time at which ``J`` needs more than its bound (rejected by the caller),
+    and every accepted plan is checked independently.
+    """
+    grid = sample_grid(resp, T)
+    peak = np.max(np.abs(resp.switching_all(nu, grid)[0]), axis=1)
+    top = float(np.max(peak, initial=0.0))
+    if top <= 0.0:
+        return []
+    weak = [int(i) for i in np.argsort(peak) if peak[i] <= NEAR_SINGULAR_RTOL * top]
+    weak = [i for i in weak if reachable_basis(resp, s, [i], T)[1].shape[1] > 0]
+    out = [[i] for i in weak]
+    for k in range(2, len(weak) + 1):
+        J = sorted(weak[:k])
+        if len(J) < resp.m and reachable_basis(resp, s, J, T)[1].shape[1] > 0:
+            out.append(J)
+    return out[:MAX_NEAR_SINGULAR]
 
 
 def reachable_basis(resp: MultiResponse, s: np.ndarray, inputs, T: float) -> tuple[np.ndarray, np.ndarray]:
@@ -155,3 +186,39 @@ def min_time_with_singular(resp, x0, u_max, s, nuh, T, J: list[int]):
     base = drive_of(resp, u_max, ext.roots, ext.sign0, ext.T, 1.0, C)
     stages = peak_stages(resp, x0, u_max, s, ext.T, Jmask, R, base)
     return ext, stages
+
+
+def min_time_at_rigid_bound(resp: MultiResponse, x0, u_max, s, nuh, T):
+    """Minimum time when the co-state sees only the rigid bodies (``T*`` the rigid-body bound).
+
+    The inputs with a rigid-body gain (``C``) move the rigid bodies time-optimally
+    with ``nu`` restricted to the rigid-body coordinates; the modes are then
+    finished by the inputs without one (``J``, :func:`peak_stages`), or must
+    already be at rest (``C``'s mode drives cancel).  Both leave the optimal
+    co-state without a mode component, which the smoothed dual only
+    approaches, and the plain Newton is singular there (e.g. two inputs
+    switching together with opposite mode gains).
+
+    Returns ``(extremal of C, stages of J)`` or None (Newton fails, or a
+    mode direction ``J`` cannot reach is not at rest).
+    """
+    r, n = resp.r, resp.n
+    if r == 0 or r == n:
+        return None
+    eye = np.eye(n)
+    Q, R = eye[:, :r], eye[:, r:]
+    Jmask = ~np.any(resp.B0 != 0.0, axis=0)
+    C = ~Jmask
+    if not C.any():
+        return None
+    ext = structure_newton(resp, x0, u_max, s, Q @ (Q.T @ nuh), T, 1.0, True, setting=Setting(C, Q))
+    if ext is None:
+        return None
+    base = drive_of(resp, u_max, ext.roots, ext.sign0, ext.T, 1.0, C)
+    R_J = reachable_basis(resp, s, np.flatnonzero(Jmask), ext.T)[0] if Jmask.any() else np.zeros((n, 0))
+    # the modes J cannot reach must already be at rest
+    w = (resp.expm_x(ext.T, x0) + base) / s
+    out_of_reach = complement_within(R, R_J, n)
+    if out_of_reach.shape[1] and float(np.max(np.abs(out_of_reach.T @ w))) > ZERO_REST:
+        return None
+    return ext, (peak_stages(resp, x0, u_max, s, ext.T, Jmask, R_J, base) if R_J.shape[1] else [])

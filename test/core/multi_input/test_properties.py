@@ -10,7 +10,7 @@ between brentq-refined zeros), that no admissible input reaches rest by
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from flexmotion_ros.core.errors import ModelError
@@ -90,8 +90,63 @@ def non_normal_moves(draw):
     return multi_state_to_rest(model, u_max, np.zeros(model.n_states), goal)
 
 
+#: Issue 15 (seed 12): T* is the rigid-body bound with u0 and u2 at full push and u1 cancelling the mode;
+#: the optimal co-state has no mode component (u1 singular), but the smoothed dual only approaches it.
+RIGID_BOUND_WITH_SINGULAR_MODE_INPUT = multi_state_to_rest(
+    MultiModel(
+        inputs=("u0", "u1", "u2"),
+        rigid_bodies=("p0",),
+        b0=((-0.7, 0.0, 0.3),),
+        c=(0.0,),
+        omega=(1.3,),
+        zeta=(0.01,),
+        b=((0.0, 0.4, 0.4),),
+    ),
+    [0.8, 0.8, 0.8],
+    np.zeros(4),
+    [1.0],
+)
+
+#: Seed 12 after that fix: T* the rigid-body bound again, every input pushing the rigid body and u1, u2's
+#: mode drives cancelling exactly (same gain and bound): no input singular, the plain Newton singular.
+RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES = multi_state_to_rest(
+    MultiModel(
+        inputs=("u0", "u1", "u2"),
+        rigid_bodies=("p0",),
+        b0=((0.3, 0.3, -0.7),),
+        c=(0.0,),
+        omega=(1.3,),
+        zeta=(0.01,),
+        b=((0.0, 0.4, 0.4),),
+    ),
+    [0.8, 0.8, 0.8],
+    np.zeros(4),
+    [1.0],
+)
+
+#: Seed 12 after both: u1 gives up its rigid push to cancel u2's mode drive, all three switching together;
+#: a family of co-states fits (the switch-time Newton's Jacobian is singular).
+CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND = multi_state_to_rest(
+    MultiModel(
+        inputs=("u0", "u1", "u2"),
+        rigid_bodies=("p0",),
+        b0=((0.3, 0.3, 1.1),),
+        c=(0.0,),
+        omega=(1.3,),
+        zeta=(0.01,),
+        b=((0.0, 0.4, 0.4),),
+    ),
+    [0.8, 0.8, 0.8],
+    np.zeros(4),
+    [1.0],
+)
+
+
 @settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow])
 @given(non_normal_moves())
+@example(RIGID_BOUND_WITH_SINGULAR_MODE_INPUT)
+@example(RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES)
+@example(CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND)
 def test_random_non_normal_models_are_certified_exact_and_proved_optimal(problem):
     prof = plan_multi_time_optimal(problem)
     assert prof.certified, prof.certificate.message
