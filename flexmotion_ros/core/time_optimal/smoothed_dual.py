@@ -157,12 +157,10 @@ def _orthonormal_columns(Z: np.ndarray, GZ: np.ndarray) -> tuple[np.ndarray, np.
     """
     if not math.isfinite(ORTHONORMALISE_ABOVE) or GZ.shape[1] == 0:
         return Z, GZ
+    d = np.abs(np.diag(np.linalg.qr(GZ, mode="r")))  # R alone first: most grids are well conditioned
+    if d.min() * ORTHONORMALISE_ABOVE >= d.max() or d.min() <= 1e-300:
+        return Z, GZ
     Q, R = np.linalg.qr(GZ)
-    d = np.abs(np.diag(R))
-    if d.min() * ORTHONORMALISE_ABOVE >= d.max():
-        return Z, GZ
-    if d.min() <= 1e-300:
-        return Z, GZ
     return solve_triangular(R, Z.T, trans="T", lower=False).T, Q
 
 
