@@ -11,6 +11,7 @@ import math
 from functools import partial
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from .reachable_set import Shooting, null_basis
 from .switching import MIN_GRID_POINTS, POINTS_PER_HALF_PERIOD, sample_grid
@@ -85,6 +86,7 @@ def inner_smooth(
     Z = null_basis(w)
     S = Gm @ nuh
     GZ = Gm @ Z  # the search space's columns on the grid: one product per solve, not per step
+    Z, GZ = _orthonormal_columns(Z, GZ)
     # smoothing scale: a fraction of the mean |S| at the start (fixed during this solve), or the caller's
     eps = smoothing if smoothing is not None else eps_rel * max(float(wq @ np.abs(S)) / T, 1e-300)
 
@@ -137,6 +139,29 @@ def inner_smooth(
     mu = um * float(wq @ (S * S / np.sqrt(S * S + eps * eps)))  # Lagrange multiplier nu.grad h
     dm = um * (math.sqrt(S[-1] ** 2 + eps * eps) - eps) + mu * float(nu @ sys.A_x(eAx))
     return nuh, f, dm
+
+
+#: Search-space columns on the grid whose condition (estimated by the diagonal of their QR factor) exceeds
+#: this are orthonormalised first (:func:`_orthonormal_columns`); inf: never (as before issue 15's tail5 pass).
+ORTHONORMALISE_ABOVE = 1e6
+
+
+def _orthonormal_columns(Z: np.ndarray, GZ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The search space ``Z`` and its columns on the grid ``GZ``, with ``GZ`` orthonormal if ill-conditioned.
+
+    Newton's step is affine invariant, but its Hessian ``GZ^T D GZ`` squares the condition of ``GZ``: on a
+    short move of a slow rigid body and slow modes the columns are nearly polynomial (``1, t, t^2, ...``),
+    condition 1e11-1e13 (a 4-mode vibration-only stop, 0.02-0.05 s: the Hessian singular to rounding, the
+    steps garbage, ``m(T)`` jumping by 1e4 between neighbouring ``T``).  With ``GZ = Q R`` the same problem
+    in the coordinates ``R y`` has the Hessian ``Q^T D Q``: conditioned by the smoothing alone.
+    """
+    if not math.isfinite(ORTHONORMALISE_ABOVE) or GZ.shape[1] == 0:
+        return Z, GZ
+    d = np.abs(np.diag(np.linalg.qr(GZ, mode="r")))  # R alone first: most grids are well conditioned
+    if d.min() * ORTHONORMALISE_ABOVE >= d.max() or d.min() <= 1e-300:
+        return Z, GZ
+    Q, R = np.linalg.qr(GZ)
+    return solve_triangular(R, Z.T, trans="T", lower=False).T, Q
 
 
 #: A Newton step of the smoothed problem cut below this length by the line search is damped
