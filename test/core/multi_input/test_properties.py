@@ -90,56 +90,25 @@ def non_normal_moves(draw):
     return multi_state_to_rest(model, u_max, np.zeros(model.n_states), goal)
 
 
+def _three_inputs_one_mode(b0: tuple[float, float, float]):
+    """A unit move of one rigid body and one mode (1.3 rad/s) driven by three inputs of bound 0.8, from rest;
+    u0 does not reach the mode, u1 and u2 drive it alike (gain 0.4): the rigid gains ``b0`` decide the rest."""
+    model = MultiModel(
+        inputs=("u0", "u1", "u2"), rigid_bodies=("p0",), b0=(b0,), c=(0.0,), omega=(1.3,), zeta=(0.01,),
+        b=((0.0, 0.4, 0.4),),
+    )  # fmt: skip
+    return multi_state_to_rest(model, [0.8, 0.8, 0.8], np.zeros(4), [1.0])
+
+
 #: Issue 15 (seed 12): T* is the rigid-body bound with u0 and u2 at full push and u1 cancelling the mode;
 #: the optimal co-state has no mode component (u1 singular), but the smoothed dual only approaches it.
-RIGID_BOUND_WITH_SINGULAR_MODE_INPUT = multi_state_to_rest(
-    MultiModel(
-        inputs=("u0", "u1", "u2"),
-        rigid_bodies=("p0",),
-        b0=((-0.7, 0.0, 0.3),),
-        c=(0.0,),
-        omega=(1.3,),
-        zeta=(0.01,),
-        b=((0.0, 0.4, 0.4),),
-    ),
-    [0.8, 0.8, 0.8],
-    np.zeros(4),
-    [1.0],
-)
-
+RIGID_BOUND_WITH_SINGULAR_MODE_INPUT = _three_inputs_one_mode((-0.7, 0.0, 0.3))
 #: Seed 12 after that fix: T* the rigid-body bound again, every input pushing the rigid body and u1, u2's
 #: mode drives cancelling exactly (same gain and bound): no input singular, the plain Newton singular.
-RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES = multi_state_to_rest(
-    MultiModel(
-        inputs=("u0", "u1", "u2"),
-        rigid_bodies=("p0",),
-        b0=((0.3, 0.3, -0.7),),
-        c=(0.0,),
-        omega=(1.3,),
-        zeta=(0.01,),
-        b=((0.0, 0.4, 0.4),),
-    ),
-    [0.8, 0.8, 0.8],
-    np.zeros(4),
-    [1.0],
-)
-
+RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES = _three_inputs_one_mode((0.3, 0.3, -0.7))
 #: Seed 12 after both: u1 gives up its rigid push to cancel u2's mode drive, all three switching together;
 #: a family of co-states fits (the switch-time Newton's Jacobian is singular).
-CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND = multi_state_to_rest(
-    MultiModel(
-        inputs=("u0", "u1", "u2"),
-        rigid_bodies=("p0",),
-        b0=((0.3, 0.3, 1.1),),
-        c=(0.0,),
-        omega=(1.3,),
-        zeta=(0.01,),
-        b=((0.0, 0.4, 0.4),),
-    ),
-    [0.8, 0.8, 0.8],
-    np.zeros(4),
-    [1.0],
-)
+CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND = _three_inputs_one_mode((0.3, 0.3, 1.1))
 
 
 @settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow])
