@@ -230,6 +230,32 @@ def core_edges(g) -> dict[str, set[str]]:
     return {m: e & inside for m, e in module_edges(g).items() if m in inside}
 
 
+def unmapped_modules(files: dict[str, Path], doc: str) -> list[str]:
+    """Modules of the core, ``execution`` and the nodes that ``docs/architecture.md`` does not name.
+
+    A module is named as `` `name` ``, ``name.`` (a dotted reference) or ``/name.py``; the command line and the
+    plots are described as one module per sub-command or figure and are not listed one by one.
+    """
+    out = []
+    for m, path in files.items():
+        layer = m.split(".")[1] if m.count(".") else ""
+        if path.stem == "__init__" or layer not in ("core", "execution", "nodes"):
+            continue
+        name = path.stem
+        if f"`{name}`" not in doc and f"`{name}." not in doc and f"/{name}.py" not in doc:
+            out.append(m)
+    return out
+
+
+def test_the_map_names_every_module():
+    assert unmapped_modules(FILES, (ROOT / "docs" / "architecture.md").read_text()) == []
+
+
+def test_an_unmapped_module_is_caught(tmp_path):
+    files = _fake(tmp_path, {"core/named.py": "", "core/forgotten.py": ""})
+    assert unmapped_modules(files, "| `named` | a module |") == [f"{CORE}.forgotten"]
+
+
 def test_longest_core_import_chain_is_short():
     """Fifteen modules, a package `__init__` included.
 
