@@ -152,6 +152,11 @@ def refine(
         gscale = 1.0 / np.maximum(np.linalg.norm(g, axis=1), 1e-300)
         r, g, eAx, drive = residual(tau, y, T, rho)
     rn = float(np.max(np.abs(r)))
+    # fewer switch times (+ T or rho) than final-state equations: those equations do not involve nu, so
+    # the Jacobian is singular by its shape (a degenerate move, e.g. an input mirroring another's drive on
+    # the modes) and a family of co-states fits; the minimum-norm step keeps nu nearest the warm start,
+    # whose sign pattern it came from, where a plain solve throws it anywhere in the family
+    family = Lt + 1 < r_dim
     for _ in range(max_iter):
         if rn <= 16.0 * np.finfo(float).eps:
             break
@@ -167,10 +172,13 @@ def refine(
         else:
             J[:r_dim, -1] = V.T @ (drive / s)
         J[-1, Lt : Lt + r_dim] = anchor
-        try:
-            step = np.linalg.solve(J, -r)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        if family:
+            step = np.linalg.lstsq(J, -r, rcond=SINGULAR_STEP_RCOND)[0]
+        else:
+            try:
+                step = np.linalg.solve(J, -r)
+            except np.linalg.LinAlgError:
+                step = np.linalg.lstsq(J, -r, rcond=None)[0]
         if not np.all(np.isfinite(step)):
             break
         eps = 4 * np.finfo(float).eps

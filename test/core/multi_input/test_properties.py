@@ -111,8 +111,29 @@ RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES = _three_inputs_one_mode((0.3, 0.3, -0.7
 CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND = _three_inputs_one_mode((0.3, 0.3, 1.1))
 
 
+def _rigid_and_modes(b0, b, u_max, goal: float):
+    """One rigid body and the modes 1.3 and 4.1 rad/s of :func:`non_normal_moves`, from rest."""
+    model = MultiModel(
+        inputs=tuple(f"u{i}" for i in range(len(b0))), rigid_bodies=("p0",), b0=(tuple(b0),), c=(0.0,),
+        omega=(1.3, 4.1), zeta=(0.01, 0.03), b=tuple(tuple(r) for r in b),
+    )  # fmt: skip
+    return multi_state_to_rest(model, u_max, np.zeros(6), [goal])
+
+
+#: Issue 15 (local seed 20): T* the rigid-body bound (u1 alone pushes it); u0 reaches both modes exactly as
+#: u1 does, so the lowest peak (0.8 / 3.5) mirrors u1 with one switch: four mode equations, two unknowns
+#: (switch, peak), a family of co-states -- the switch-time Newton's Jacobian singular by its shape.
+MIRRORED_MODE_DRIVE = _rigid_and_modes((0.0, 0.3), ((0.4, 0.4), (0.4, 0.4)), [3.5, 0.8], 0.30078125)
+#: Issue 15 (local seed 27): the same with two inputs (u0, u1) cancelling u2's drive on both modes.
+TWO_INPUTS_CANCELLING_MODE_DRIVE = _rigid_and_modes(
+    (0.0, 0.0, 0.3), ((0.4, 0.4, 0.0), (0.4, -0.6, 0.4)), [3.5, 3.5, 3.5], 0.5
+)
+
+
 @settings(max_examples=12, suppress_health_check=[HealthCheck.too_slow])
 @given(non_normal_moves())
+@example(MIRRORED_MODE_DRIVE)
+@example(TWO_INPUTS_CANCELLING_MODE_DRIVE)
 @example(RIGID_BOUND_WITH_SINGULAR_MODE_INPUT)
 @example(RIGID_BOUND_WITH_CANCELLING_MODE_DRIVES)
 @example(CANCELLING_MODE_DRIVES_ABOVE_RIGID_BOUND)
