@@ -114,7 +114,9 @@ def complement_within(V: np.ndarray | None, R: np.ndarray, n: int) -> np.ndarray
     P = np.eye(n) if V is None else V
     M = P - R @ (R.T @ P)
     U, sv, _ = np.linalg.svd(M, full_matrices=False)
-    return U[:, sv > 1e-9 * max(float(sv[0]) if sv.size else 0.0, 1e-300)]
+    # absolute: the columns of P are orthonormal, so sv <= 1; when span(V) lies inside span(R), M is
+    # rounding alone (~1e-16), and a threshold relative to its largest singular value would keep it
+    return U[:, sv > 1e-9]
 
 
 def peak_stages(
