@@ -51,7 +51,9 @@ class Setting:
     contribution of inputs solved before.  The final-state equations are
     projected on ``V`` (``V^T F = 0``) and ``nu = V y``.  ``min_norm_steps``:
     where a Newton step fails and the Jacobian is singular, retry with the
-    minimum-norm (truncated SVD) step; a last resort, as it slows the
+    minimum-norm (truncated SVD) step, and take that step throughout when the
+    Jacobian is singular by its shape (fewer switches than final-state
+    equations: a family of co-states); a last resort, as it slows the
     ordinary searches (more iterations on structures that are wrong anyway).
     """
 
@@ -155,8 +157,9 @@ def refine(
     # fewer switch times (+ T or rho) than final-state equations: those equations do not involve nu, so
     # the Jacobian is singular by its shape (a degenerate move, e.g. an input mirroring another's drive on
     # the modes) and a family of co-states fits; the minimum-norm step keeps nu nearest the warm start,
-    # whose sign pattern it came from, where a plain solve throws it anywhere in the family
-    family = Lt + 1 < r_dim
+    # whose sign pattern it came from, where a plain solve throws it anywhere in the family.  Only as a
+    # last resort: on a structure that merely lacks switches the plain step fails fast, these do not
+    family = setting.min_norm_steps and Lt + 1 < r_dim
     for _ in range(max_iter):
         if rn <= 16.0 * np.finfo(float).eps:
             break

@@ -142,34 +142,55 @@ def peak_stages(
         # the earlier stages already bring this subspace to rest: these inputs stay at 0
         idx = [int(i) for i in np.flatnonzero(active)]
         return [Stage(idx, [np.empty(0)] * resp.m, [1.0] * resp.m, np.zeros(resp.n), 0.0)]
+    duals = []
     nuh = None
     for eps in (*SMOOTHING, *(f[0] for f in FINER)):
         nuh, mval, _, _ = inner_smooth(resp, x0, u_max, s, T, nuh, eps, active=active, V=V, w_vec=w)
         if eps > SMOOTHING[-1]:
             continue
+        duals.append((nuh, mval))
         J = singular_inputs(resp, nuh / s, T, active)
-        if J and len(J) < int(np.count_nonzero(active)):
-            if depth >= MAX_DEPTH:
-                break
-            Jmask = np.zeros(resp.m, dtype=bool)
-            Jmask[J] = True
-            C = active & ~Jmask
-            R, _ = reachable_basis(resp, s, J, T)
-            V2 = complement_within(V, R, resp.n)
-            nuh2 = V2 @ (V2.T @ nuh)
-            ext = structure_newton(resp, x0, u_max, s, nuh2, T, 1.0 / mval, False, setting=Setting(C, V2, base))
-            if ext is None:
-                continue
-            base2 = base + drive_of(resp, u_max, ext.roots, ext.sign0, T, ext.rho, C)
-            head = Stage(list(np.flatnonzero(C)), ext.roots, ext.sign0, ext.nuh, ext.rho)
-            return [head, *peak_stages(resp, x0, u_max, s, T, Jmask, R, base2, depth + 1)]
-        ext = structure_newton(resp, x0, u_max, s, nuh, T, 1.0 / mval, False, setting=Setting(active, V, base))
-        if ext is not None:
-            return [Stage(list(np.flatnonzero(active)), ext.roots, ext.sign0, ext.nuh, ext.rho)]
+        if J and len(J) < int(np.count_nonzero(active)) and depth >= MAX_DEPTH:
+            break
+        if (found := _peak_attempt(resp, x0, u_max, s, T, active, V, base, depth, nuh, mval, J, False)) is not None:
+            return found
+    else:
+        # a degenerate stage (e.g. an input mirroring another's drive on the modes: more final-state
+        # equations than switches) has a family of co-states, and plain Newton steps leave the warm
+        # start's sign pattern: minimum-norm steps from each warm start, only now (they slow wrong guesses)
+        for nuh, mval in duals:
+            J = singular_inputs(resp, nuh / s, T, active)
+            if (found := _peak_attempt(resp, x0, u_max, s, T, active, V, base, depth, nuh, mval, J, True)) is not None:
+                return found
     raise SolverError(
         f"multi-input planner: no lowest-peak extremal at T = {T:.6g} s for inputs {[int(i) for i in np.flatnonzero(active)]}; "
         "nothing is returned"
     )
+
+
+def _peak_attempt(resp, x0, u_max, s, T, active, V, base, depth, nuh, mval, J, min_norm: bool) -> list[Stage] | None:
+    """:func:`peak_stages` from one smoothed dual ``(nuh, mval)`` with its singular inputs ``J``; None if Newton fails."""
+    if J and len(J) < int(np.count_nonzero(active)):
+        Jmask = np.zeros(resp.m, dtype=bool)
+        Jmask[J] = True
+        C = active & ~Jmask
+        R, _ = reachable_basis(resp, s, J, T)
+        V2 = complement_within(V, R, resp.n)
+        if V2.shape[1] == 0:  # J reaches all of span(V): no co-state there can be blind to it
+            return None
+        nuh2 = V2 @ (V2.T @ nuh)
+        setting = Setting(C, V2, base, min_norm_steps=min_norm)
+        ext = structure_newton(resp, x0, u_max, s, nuh2, T, 1.0 / mval, False, setting=setting)
+        if ext is None:
+            return None
+        base2 = base + drive_of(resp, u_max, ext.roots, ext.sign0, T, ext.rho, C)
+        head = Stage(list(np.flatnonzero(C)), ext.roots, ext.sign0, ext.nuh, ext.rho)
+        return [head, *peak_stages(resp, x0, u_max, s, T, Jmask, R, base2, depth + 1)]
+    setting = Setting(active, V, base, min_norm_steps=min_norm)
+    ext = structure_newton(resp, x0, u_max, s, nuh, T, 1.0 / mval, False, setting=setting)
+    if ext is None:
+        return None
+    return [Stage(list(np.flatnonzero(active)), ext.roots, ext.sign0, ext.nuh, ext.rho)]
 
 
 def min_time_with_singular(resp, x0, u_max, s, nuh, T, J: list[int]):
