@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import SolverError
 from ..model.modal_model import ModalModel
 from ..time_optimal.rigid_body import rigid_profile
-from ..tolerances import AT_REST
+from ..tolerances import AT_REST, GAP_RTOL
 from .dual import FINER, multi_state_scale, smoothed_time
 from .exact import system_of
 from .model import MultiModel
@@ -27,6 +27,7 @@ from .problem import MultiMoveProblem
 from .response import MultiResponse
 from .singular import (
     min_time_at_rigid_bound,
+    min_time_near_rigid_bound,
     min_time_with_singular,
     near_singular_candidates,
     peak_stages,
@@ -272,6 +273,11 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
         # Jacobian, minimum-norm Newton steps
         every = Setting(np.ones(resp.m, dtype=bool), min_norm_steps=True)
         ext = structure_newton(resp, x0, U, s, nuh, T, 1.0, True, setting=every)
+        if ext is not None:
+            found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
+    if found is None:
+        # T* a hair above the rigid-body bound, the modes finished by blips too short for the warm start
+        ext = min_time_near_rigid_bound(resp, x0, U, s, nuh, T, T_low, GAP_RTOL)
         if ext is not None:
             found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
     if found is None:

@@ -30,9 +30,9 @@ import numpy as np
 from ..errors import SolverError
 from ..time_optimal.switching import sample_grid
 from .dual import FINER, SMOOTHING, inner_smooth
-from .newton import Setting, drive_of
+from .newton import Extremal, Setting, drive_of, refine
 from .response import MultiResponse
-from .structure import structure_newton
+from .structure import structure, structure_newton
 
 #: An input whose switching function stays below this, relative to the largest, is singular.
 SINGULAR_RTOL = 1e-7
@@ -245,3 +245,44 @@ def min_time_at_rigid_bound(resp: MultiResponse, x0, u_max, s, nuh, T):
     if out_of_reach.shape[1] and float(np.max(np.abs(out_of_reach.T @ w))) > ZERO_REST:
         return None
     return ext, (peak_stages(resp, x0, u_max, s, ext.T, Jmask, R_J, base) if R_J.shape[1] else [])
+
+
+#: The near-rigid-bound hypothesis is tried when the smoothed time is within this (relative) of the bound.
+NEAR_RIGID_RTOL = 1e-3
+
+
+def min_time_near_rigid_bound(resp: MultiResponse, x0, u_max, s, nuh, T: float, T_low: float, gap_rtol: float):
+    """A move within ``gap_rtol`` of the rigid-body bound ``T_low`` (s), whose modes are not quite at rest there.
+
+    When the rigid-body bang-bang nearly leaves the modes at rest (e.g. a
+    switch at a whole number of the mode's periods), ``T*`` lies a hair above
+    ``T_low`` and the optimum finishes the modes with blips far shorter than
+    the smoothing resolves, next to a switch (three switches where the warm
+    start sees one).  Newton from each such structure; a converged extremal
+    within ``gap_rtol`` of ``T_low`` is returned with the rigid-body bound's
+    co-state (``nu`` on the rigid bodies only): its weak-duality bound proves
+    the plan optimal within ``gap_rtol``, whether or not the blips' zeros can
+    be isolated.  Returns the extremal (roots from the plan, ``nuh`` the
+    rigid co-state) or None.
+    """
+    r, n = resp.r, resp.n
+    if r == 0 or r == n or T > T_low * (1.0 + NEAR_RIGID_RTOL):
+        return None
+    Q = np.eye(n)[:, :r]
+    C = np.any(resp.B0 != 0.0, axis=0)
+    rigid = structure_newton(resp, x0, u_max, s, Q @ (Q.T @ nuh), T, 1.0, True, setting=Setting(C, Q))
+    if rigid is None:
+        return None
+    roots, sign0 = structure(resp, nuh / s, T)
+    for i in range(resp.m):
+        for t0 in roots[i]:
+            for side in (-1.0, 1.0):
+                cand = [x.copy() for x in roots]
+                w = side * 1e-4 * T
+                cand[i] = np.sort(np.concatenate([cand[i], [t0 + w, t0 + 2.0 * w]]))
+                if cand[i][0] <= 0.0 or cand[i][-1] >= T:
+                    continue
+                ok, r_out, _, T_out, _, _ = refine(resp, x0, u_max, s, cand, sign0, nuh, T, 1.0, True)
+                if ok and T_out <= T_low * (1.0 + 0.25 * gap_rtol):
+                    return Extremal(r_out, list(sign0), rigid.nuh, T_out, 1.0, 0.0)
+    return None
