@@ -67,6 +67,24 @@ def decoupled_parts(model: MultiModel) -> list[tuple[tuple[int, ...], tuple[int,
     return out
 
 
+def mode_free_push(model: MultiModel) -> bool:
+    """Whether some combination of the inputs moves the rigid bodies while its drives on every mode cancel.
+
+    Such moves are degenerate for the switch-time Newton (switches coincide, a
+    family of co-states): the one physical trait shared by the moves it still
+    refuses (issue 15), named in the refusal.
+    """
+    B0, Bm = model.B0, model.Bm
+    if not B0.size or not np.any(B0):
+        return False
+    if not Bm.size:
+        return False
+    _, sv, vt = np.linalg.svd(Bm)
+    rank = int(np.count_nonzero(sv > 1e-12 * float(sv[0]))) if sv.size else 0
+    null = vt[rank:]  # combinations with no drive on any mode
+    return bool(null.size) and float(np.max(np.abs(B0 @ null.T))) > 1e-9 * float(np.max(np.abs(B0)))
+
+
 @dataclass
 class PartSolution:
     """One part's extremal (forward time).
@@ -281,9 +299,14 @@ def _solve_min_time(indices, problem: MultiMoveProblem) -> PartSolution:
         if ext is not None:
             found = (ext, [(list(range(resp.m)), ext.roots, ext.sign0, 1.0, ext.nuh)])
     if found is None:
+        why = (
+            ": a degenerate move, a combination of the inputs pushes the rigid bodies without exciting any mode"
+            if mode_free_push(problem.model)
+            else ""
+        )
         raise SolverError(
             f"multi-input time-optimal planner: no extremal converged for inputs "
-            f"{[problem.model.inputs[i] for i in range(problem.model.m)]} (near T = {T:.6g} s); nothing is returned"
+            f"{[problem.model.inputs[i] for i in range(problem.model.m)]} (near T = {T:.6g} s){why}; nothing is returned"
         )
     ext, stages = found
     sw, lv, info = _combine(ext.T, U, stages, s)

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from flexmotion_ros.core.errors import ModelError, SolverError
 from flexmotion_ros.core.multi_input import MultiModel, multi_state_to_rest, plan_multi_time_optimal
+from flexmotion_ros.core.multi_input.parts import mode_free_push
 
 from . import independent as ind
 
@@ -198,7 +199,20 @@ STILL_REFUSED = {
 
 
 @pytest.mark.parametrize("name", sorted(STILL_REFUSED))
-@pytest.mark.xfail(raises=SolverError, strict=True, reason="issue 15: still refused, see STILL_REFUSED")
-def test_known_refusals_are_fast_one_line_solver_errors(name):
-    """Recorded so that a fix shows (strict: the test fails once they plan); meanwhile a quick refusal."""
-    plan_multi_time_optimal(STILL_REFUSED[name])
+def test_known_refusals_name_the_degenerate_push(name):
+    """Still refused, in one line that names the physical trait (update this test when they plan)."""
+    with pytest.raises(SolverError, match="pushes the rigid bodies without exciting any mode") as info:
+        plan_multi_time_optimal(STILL_REFUSED[name])
+    assert "\n" not in str(info.value)
+
+
+def test_the_degenerate_push_is_named_only_where_it_exists():
+    """``mode_free_push``: true where a combination of inputs moves the rigid body with no mode drive."""
+    assert mode_free_push(STILL_REFUSED["seed20_rigid_only_combination"].model)  # u1 + u2 - u0
+    assert mode_free_push(NEAR_RESONANT_RIGID_BOUND.model)  # u0 - u1
+    assert mode_free_push(RIGID_BOUND_WITH_SINGULAR_MODE_INPUT.model)  # u0 alone (planned since wip/mi4)
+    # the mode gains invertible: every push excites a mode
+    assert not mode_free_push(_rigid_and_modes((0.3, 0.3), ((0.4, 0.4), (0.4, -0.6)), [1.0, 1.0], 1.0).model)
+    # u0 + u1 - u2 cancels both modes and, here, its rigid push too
+    one = [1.0, 1.0, 1.0]
+    assert not mode_free_push(_rigid_and_modes((0.3, 0.3, 0.6), ((0.4, 0.0, 0.4), (0.0, 0.4, 0.4)), one, 1.0).model)
