@@ -247,8 +247,9 @@ def min_time_at_rigid_bound(resp: MultiResponse, x0, u_max, s, nuh, T):
     return ext, (peak_stages(resp, x0, u_max, s, ext.T, Jmask, R_J, base) if R_J.shape[1] else [])
 
 
-#: The near-rigid-bound hypothesis is tried when the smoothed time is within this (relative) of the bound.
-NEAR_RIGID_RTOL = 1e-3
+#: The near-rigid-bound hypothesis is tried when the smoothed time is within this (relative) of the bound
+#: (the finest smoothing leaves it ~1e-5 above a T* within GAP_RTOL of it).
+NEAR_RIGID_RTOL = 1e-4
 
 
 def min_time_near_rigid_bound(resp: MultiResponse, x0, u_max, s, nuh, T: float, T_low: float, gap_rtol: float):

@@ -174,7 +174,7 @@ def _coupled(b0, omega, zeta, b, u_max, x0, goal: float, c: float = 0.0):
 
 
 #: Issue 15, still refused ("no extremal converged"; main refuses them too), found by local seeds 1..60 of
-#: the two properties above.  Common to both: a combination of the inputs drives the rigid body
+#: the two properties above.  Common to all three: a combination of the inputs drives the rigid body
 #: alone (the mode drives cancel), so switches coincide and the switch-time Jacobian is singular.
 STILL_REFUSED = {
     # local seed 3: u1 - u0 pushes the rigid body alone; u1 nearly singular (|S_1| peak 0.7 % of |S_0|), Newton
@@ -189,6 +189,17 @@ STILL_REFUSED = {
         [0, 0, 0, 0, -0.03081051, 0, 0, 0],
         0.2,
         c=-0.05,
+    ),  # fmt: skip
+    # local seed 16 (after NEAR_RESONANT_RIGID_BOUND): three inputs, one switch each, T* = 3.3259 s, 4e-4 above
+    # the rigid-body bound (the same mode, 7.4375 rad/s); the mode-free push is u0 - 2 u1
+    "seed16_three_inputs_one_mode": _coupled(
+        (0.201171875, 0.2, 0.203125),
+        (7.4375,),
+        (0.0,),
+        ((0.125, 0.0625, 0.25),),
+        [0.5, 0.5, 0.5],
+        [0, 0.5, 0, 0],
+        0.203125,
     ),  # fmt: skip
     # local seed 20 (after the two examples above): u1 + u2 - u0 pushes the rigid body alone; u0 and u1
     # switch together near T/2 (T* = 2.7073 s, above the rigid-body bound 2.18 s)
