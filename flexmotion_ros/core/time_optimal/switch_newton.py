@@ -224,11 +224,13 @@ def _dense_step(Gj, fT, D, Gs, anchor, r, n: int, L: int) -> np.ndarray:
         return np.linalg.lstsq(J, -r, rcond=None)[0]
 
 
-def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0):
+def structure_newton(
+    sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0: float = 1.0, T_low: float = 0.0, max_iter: int = 30
+):
     """Switch-time Newton from the switch structure of ``nuh`` at ``T``, with structure updates.
 
     ``roots``/``sign0``: the structure if already known for ``nuh`` at ``T``.
-    ``T_low``: a proved lower bound on the optimal time.
+    ``T_low``: a proved lower bound on the optimal time.  ``max_iter``: Newton steps per structure.
     Returns ``(nuh, T, roots, signs, residual)`` of a converged extremal (its
     switching function changes sign exactly at its switches), or None.
     """
@@ -236,7 +238,7 @@ def structure_newton(sh: Shooting, nuh: np.ndarray, T: float, roots=None, sign0:
         roots, sign0 = find_roots(sh.sys, nuh / sh.s, T, root_grid(sh.sys, T))
     nuh_r, T_r = nuh, T
     for _ in range(MAX_STRUCTURE_UPDATES):
-        ok, roots_r, nuh_r, T_r, r = refine_switches(sh, roots, sign0, nuh_r, T_r)
+        ok, roots_r, nuh_r, T_r, r = refine_switches(sh, roots, sign0, nuh_r, T_r, max_iter)
         if not ok:
             return None
         # an extremal switches exactly where S changes sign; if S changes sign

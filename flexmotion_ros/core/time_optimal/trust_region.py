@@ -8,10 +8,11 @@ changes the switching function (:func:`gram_metric`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from .reachable_set import Shooting, null_basis
+from .reachable_set import Evaluation, Shooting, null_basis
 from .switching import root_grid, sample_grid
 
 
@@ -60,11 +61,24 @@ def gram_metric(sh: Shooting, T: float, Z: np.ndarray) -> np.ndarray:
     return V * np.sqrt(lam)  # W = P P^T
 
 
-def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 100, rtol: float = 1e-14):
+def inner_exact(
+    sh: Shooting,
+    T: float,
+    nuh: np.ndarray | None,
+    max_iter: int = 100,
+    rtol: float = 1e-14,
+    probe: Callable[[np.ndarray, Evaluation, float], bool] | None = None,
+):
     """Minimise ``h_T`` on ``{nu : nu^T w = 1}`` (convex), by a trust-region Newton method.
 
     The trust region bounds the change in the switching function
     (:func:`gram_metric`).  Returns ``(nuh, m, dm/dT, eval)``.
+
+    ``probe(nuh, e, pred)``: called at each iterate (scaled co-state ``nuh``,
+    its evaluation ``e``, the step's predicted decrease of ``h`` relative to
+    ``h``) before its step; the solve stops there if it returns True (the
+    caller found what it wanted from the iterate: :func:`~.costate_solver.solve_costate`
+    tries the switch-time Newton from each new switch structure).
     """
     w = -sh.sys.expm_x(T, sh.x0) / sh.s
     if nuh is None or float(nuh @ w) <= 0.0:
@@ -81,6 +95,8 @@ def inner_exact(sh: Shooting, T: float, nuh: np.ndarray | None, max_iter: int = 
         Hr = Pinv @ (Z.T @ e.H @ Z) @ Pinv.T
         y, newton = trust_step(g, Hr, radius)
         pred = -float(g @ y + 0.5 * y @ Hr @ y)
+        if probe is not None and probe(nuh, e, pred / max(e.h, 1e-300)):
+            break
         if pred <= rtol * max(e.h, 1e-300) or (
             radius <= _S_NORM_CAP * _s_bound(sh, nuh, T) and radius <= 1e-15 * _s_norm(sh, nuh, T)
         ):
