@@ -84,13 +84,14 @@ class Extremal:
                 Lam = Sal.T @ Lam
         return out
 
-    def residual(self, y: np.ndarray, want_lam_jac: bool = False, column: int = -1):
+    def residual(self, y: np.ndarray, want_lam_jac: bool = False, column: int = -1, below: float = math.inf):
         """The scaled conditions at ``y`` (and, with ``want_lam_jac``, the Jacobian but for the switching
         rows' columns in ``(t_j, T)``, and whether the run reverses).
 
         ``column``: ``y`` differs from the last point evaluated with ``want_lam_jac`` in ``y[column]`` only (a
         difference): the exact run resumes at the switch before it (the same numbers, the common part of
-        the run not repeated)."""
+        the run not repeated).  ``below``: the Jacobian only if the residual's largest entry is below this (a
+        line-search trial that does not lower the residual has no use for it): ``(r, None, False)`` otherwise."""
         if self.budget is not None:
             if self.budget[0] <= 0:
                 return None  # out of evaluations: the solve fails (the caller moves on)
@@ -122,6 +123,8 @@ class Extremal:
         r = np.concatenate([r1, sigma, [H]])
         if not want_lam_jac:
             return r
+        if not float(np.max(np.abs(r))) < below:
+            return r, None, False
         # Jacobian: in lambda(T) exactly; in (t_j, T) in closed form along the exact trajectory
         # (the costate does not depend on x between reversals; through reversal times it does:
         # those columns of the switching rows are differenced by the caller)
@@ -194,7 +197,7 @@ class Extremal:
             for _ in range(halvings):
                 yc = y + tt * step
                 if self.valid(yc):
-                    oc = self.residual(yc, True)
+                    oc = self.residual(yc, True, below=rn)
                     if oc is not None and float(np.max(np.abs(oc[0]))) < rn:
                         break
                 tt *= 0.5

@@ -82,8 +82,8 @@ def test_differenced_columns_resume_the_last_run(spy):
     real = Extremal.residual
     checked = []
 
-    def residual(self, y, want_lam_jac=False, column=-1):
-        out = real(self, y, want_lam_jac, column)
+    def residual(self, y, want_lam_jac=False, column=-1, **kwargs):
+        out = real(self, y, want_lam_jac, column, **kwargs)
         if column >= 1 and out is not None:
             saved, budget = self._jac_run, self.budget
             self._jac_run, self.budget = None, None
@@ -102,9 +102,9 @@ def test_differenced_columns_resume_the_last_run(spy):
     fresh_segments = []
     resumed_segments = []
 
-    def count(self, y, want_lam_jac=False, column=-1):
+    def count(self, y, want_lam_jac=False, column=-1, **kwargs):
         n0 = len(advances)
-        r = real(self, y, want_lam_jac, column)
+        r = real(self, y, want_lam_jac, column, **kwargs)
         (resumed_segments if column >= 1 else fresh_segments).append(len(advances) - n0)
         return r
 
@@ -134,3 +134,33 @@ def test_a_retry_after_a_failed_solve_has_its_own_small_budget(spy):
     assert forces == [F, F / 2]
     # 10 runs at F, then at most RETRY_EVALS at F / 2 (34 in all on main 0f97951)
     assert len(runs) <= 10 + continuation.RETRY_EVALS
+
+
+def test_a_rejected_line_search_trial_forms_no_jacobian(spy):
+    """A trial point whose residual is not below the current one returns ``(r, None, False)``: the same ``r``
+    to the bit; the continuation of case 870 (its steps at F and F / 2 rejected) forms fewer Jacobians than
+    residuals asked for one."""
+    problem, F = fuzz_870()
+    base = plan_time_optimal(problem)
+    scale, _ = frictionless_scales(problem, base)
+    y = np.concatenate([base.switch_times, [base.duration], base.certificate.costate_final])
+    ext = Extremal(problem, np.asarray(base.levels, float), F, scale)
+    r, J, _ = ext.residual(y, True)
+    r_cut, J_cut, rev_cut = ext.residual(y, True, below=0.5 * float(np.max(np.abs(r))))
+    assert J is not None and J_cut is None and rev_cut is False
+    assert np.array_equal(r, r_cut) and np.array_equal(r, ext.residual(y))
+    formed = []
+    real = Extremal.residual
+
+    def recording(self, y, want_lam_jac=False, column=-1, below=np.inf):
+        out = real(self, y, want_lam_jac, column, below)
+        if want_lam_jac and out is not None:
+            formed.append(out[1] is not None)
+        return out
+
+    Extremal.residual = recording
+    try:
+        assert continue_in_friction(problem, base, F, scale) is None
+    finally:
+        Extremal.residual = real
+    assert formed.count(False) >= 3  # the rejected trials of the first step at F (at least)
