@@ -45,6 +45,8 @@ class Extremal:
         #: ``block_start`` or had no reversal) and the block of its last iterate.
         self.block_first: np.ndarray | None = None
         self.block_last: np.ndarray | None = None
+        #: ``(y, run)`` of the last point evaluated with the Jacobian, its run recorded (differences resume it).
+        self._jac_run: tuple[np.ndarray, FrictionRun] | None = None
 
     def unpack(self, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         lam = np.zeros(self.sys.n)
@@ -82,14 +84,29 @@ class Extremal:
                 Lam = Sal.T @ Lam
         return out
 
-    def residual(self, y: np.ndarray, want_lam_jac: bool = False):
+    def residual(self, y: np.ndarray, want_lam_jac: bool = False, column: int = -1, below: float = math.inf):
+        """The scaled conditions at ``y`` (and, with ``want_lam_jac``, the Jacobian but for the switching
+        rows' columns in ``(t_j, T)``, and whether the run reverses).
+
+        ``column``: ``y`` differs from the last point evaluated with ``want_lam_jac`` in ``y[column]`` only (a
+        difference): the exact run resumes at the switch before it (the same numbers, the common part of
+        the run not repeated).  ``below``: the Jacobian only if the residual's largest entry is below this (a
+        line-search trial that does not lower the residual has no use for it): ``(r, None, False)`` otherwise."""
         if self.budget is not None:
             if self.budget[0] <= 0:
                 return None  # out of evaluations: the solve fails (the caller moves on)
             self.budget[0] -= 1
         t_sw, T, lam = self.unpack(y)
         u = PiecewiseConstant.from_switches(t_sw, self.levels, T)
-        run = self.sys.run(self.x0, u, [T], lock_after=float(t_sw[-1]) if self.L else 0.0)
+        lock = float(t_sw[-1]) if self.L else 0.0
+        base = self._jac_run
+        if column >= 1 and base is not None and np.array_equal(y[:column], base[0][:column]):
+            # the breaks and levels up to the switch before y[column] are the base run's
+            run = self.sys.run(self.x0, u, [T], lock_after=lock, resume=(base[1], column - 1))
+        else:
+            run = self.sys.run(self.x0, u, [T], lock_after=lock, record=want_lam_jac)
+        if want_lam_jac:
+            self._jac_run = (y.copy(), run)
         xT = run.states[0]
         r1 = (xT - self.xf)[self.I] / self.s[self.I]
         Lams = self.costates(run, lam)
@@ -106,6 +123,8 @@ class Extremal:
         r = np.concatenate([r1, sigma, [H]])
         if not want_lam_jac:
             return r
+        if not float(np.max(np.abs(r))) < below:
+            return r, None, False
         # Jacobian: in lambda(T) exactly; in (t_j, T) in closed form along the exact trajectory
         # (the costate does not depend on x between reversals; through reversal times it does:
         # those columns of the switching rows are differenced by the caller)
@@ -164,7 +183,7 @@ class Extremal:
                         yp[j] -= 2.0 * hstep
                         if not self.valid(yp):
                             return False, y, rn
-                    rp = self.residual(yp)
+                    rp = self.residual(yp, column=j)
                     if rp is None:
                         return False, y, rn
                     J[sw, j] = (rp - r)[sw] / (yp[j] - y[j])
@@ -178,7 +197,7 @@ class Extremal:
             for _ in range(halvings):
                 yc = y + tt * step
                 if self.valid(yc):
-                    oc = self.residual(yc, True)
+                    oc = self.residual(yc, True, below=rn)
                     if oc is not None and float(np.max(np.abs(oc[0]))) < rn:
                         break
                 tt *= 0.5

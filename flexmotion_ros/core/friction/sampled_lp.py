@@ -40,7 +40,7 @@ from ..model.boundary import MoveProblem
 from ..sampled.lp_tools import least_norm_correction
 from ..tolerances import HIGHS_OPTIONS
 from .chain_form import chain_matrix
-from .contact import ClosedForm
+from .closed_form import ClosedForm
 from .lp_work import EffortSpent, lp_effort, lp_iteration_limit
 
 #: HiGHS's presolve on the friction LPs.  Off: these LPs have nothing for it to remove (every sign condition

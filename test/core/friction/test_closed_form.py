@@ -14,7 +14,7 @@ import pytest
 from scipy.linalg import expm
 
 from flexmotion_ros.core import ModalModel
-from flexmotion_ros.core.friction.contact import ClosedForm
+from flexmotion_ros.core.friction.closed_form import ClosedForm
 from flexmotion_ros.core.simulation.modal_response import ModalResponse
 
 

@@ -662,9 +662,9 @@ def test_exact_sampled_check_is_one_run_of_the_move(monkeypatch):
     runs = []
     real = contact_mod.FrictionSystem.run
 
-    def counted(self, x0, u, times=None, lock_after=math.inf):
+    def counted(self, x0, u, times=None, lock_after=math.inf, **kwargs):
         runs.append(u.duration)
-        return real(self, x0, u, times, lock_after)
+        return real(self, x0, u, times, lock_after, **kwargs)
 
     monkeypatch.setattr(contact_mod.FrictionSystem, "run", counted)
     prof = plan_time_optimal_friction(problem, F, 100.0)
