@@ -323,3 +323,46 @@ def test_a_start_basis_of_another_shape_is_not_used():
     res = solve_lp(**lp, start_basis=other)
     assert res.status is LpStatus.OPTIMAL
     assert res.objective == pytest.approx(scipy_reference(lp).fun, rel=1e-9, abs=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shift=st.floats(0.0, 1.0))
+def test_a_start_point_gives_the_cold_answer_of_scipy(seed, shift):
+    """The limited planner's reference LP starts from the scaled probe's point (the same columns, another
+    objective and a few more rows): HiGHS builds its starting basis around the point (``start_point``).  The
+    verdict, optimum and duals are those of a cold solve and of ``linprog``; from the LP's own optimum
+    the simplex has little left to do.  (The old ``solve_lp`` had no ``start_point``.)"""
+    lp = random_lp(seed, 3, 20, 40)
+    other = dict(lp, cost=np.random.default_rng(seed + 7).normal(size=40))
+    first = solve_lp(**other)
+    assert first.status is LpStatus.OPTIMAL
+    # the other optimum, moved part of the way towards a random point (inside or outside the feasible set)
+    x0 = first.x + shift * np.random.default_rng(seed + 8).normal(size=40)
+    warm = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, start_point=x0)
+    cold = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX)
+    ref = scipy_reference(lp)
+    assert warm.status is cold.status is LpStatus.OPTIMAL and ref.status == 0
+    assert warm.objective == pytest.approx(cold.objective, rel=1e-9, abs=1e-9)
+    assert warm.objective == pytest.approx(ref.fun, rel=1e-9, abs=1e-9)
+    # duals may differ between optimal bases of a degenerate LP: the weak-duality value is what must agree
+    dual_value = warm.eq_marginals @ lp["b_eq"] + warm.ub_marginals @ lp["b_ub"]
+    reduced = lp["cost"] - lp["A_eq"].T @ warm.eq_marginals - lp["A_ub"].T @ warm.ub_marginals
+    at_lower, at_upper = reduced > 1e-9, reduced < -1e-9  # (a one-sided column has no bound there)
+    dual_value += reduced[at_lower] @ lp["lower"][at_lower] + reduced[at_upper] @ lp["upper"][at_upper]
+    assert dual_value == pytest.approx(ref.fun, rel=1e-7, abs=1e-7)
+    again = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, start_point=cold.x)
+    assert again.objective == pytest.approx(ref.fun, rel=1e-9, abs=1e-9)
+    assert again.iterations <= cold.iterations
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_start_point_of_another_size_or_an_infeasible_lp(backend):
+    lp = random_lp(5, 2, 10, 20)
+    res = solve_lp(**lp, start_point=np.zeros(7), backend=backend)
+    assert res.status is LpStatus.OPTIMAL
+    assert res.objective == pytest.approx(scipy_reference(lp).fun, rel=1e-9, abs=1e-9)
+    # an infeasible LP stays infeasible from any point
+    bad = dict(lp, A_ub=np.vstack([lp["A_ub"], np.ones((2, 20)) * [[1.0], [-1.0]]]), b_ub=np.r_[lp["b_ub"], -1.0, -1.0])
+    assert scipy_reference(bad).status == 2
+    res = solve_lp(**bad, method=LpMethod.DUAL_SIMPLEX, start_point=np.zeros(20), backend=backend)
+    assert res.status is LpStatus.INFEASIBLE

@@ -88,3 +88,6 @@ class LPSolution:
     lam: np.ndarray  # their multipliers (>= 0)
     segments: Segments
     levels: np.ndarray
+    #: The LP's column values (None for a lifted solution): a start point for another LP over the same
+    #: columns (:meth:`.lp.LimitLP.solve`'s ``start``).
+    x: np.ndarray | None = None

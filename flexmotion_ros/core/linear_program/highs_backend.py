@@ -131,6 +131,7 @@ def solve_highspy(
     crossover=True,
     iteration_limit=None,
     start_basis=None,
+    start_point=None,
     want_basis=False,
 ) -> LpSolution:
     n = c.size
@@ -191,6 +192,12 @@ def solve_highspy(
         )
     if start_basis is not None and start_basis.col_status.size == n and start_basis.row_status.size == row_lo.size:
         _set_basis(h, start_basis)
+    elif start_point is not None and np.size(start_point) == n:
+        # HiGHS turns a point without a basis into a starting basis in run() (its basisForSolution)
+        start = highspy.HighsSolution()
+        start.col_value = np.asarray(start_point, dtype=float).tolist()
+        start.value_valid = True
+        h.setSolution(start)
     h.run()
     model_status = h.getModelStatus()
     status = _STATUS.get(model_status, LpStatus.OTHER)
