@@ -66,6 +66,9 @@ class Assembled:
     row_scale: np.ndarray
     meta: np.ndarray
     s: np.ndarray
+    #: The ``t`` columns (one per knot, first) and the total-variation columns (last).
+    n_t: int = 0
+    n_tv: int = 0
 
 
 class LimitRows:
@@ -376,6 +379,8 @@ class LimitRows:
             row_scale=row_scale,
             meta=U.meta_array(),
             s=U.s_array(),
+            n_t=int(kn.size),
+            n_tv=0 if tvar is None else int(tvar.size),
         )
 
     def _run_states(self, ks, c, bi, seg, run, kd, var, lvar, T):

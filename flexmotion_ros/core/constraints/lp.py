@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 from scipy.ndimage import maximum_filter1d
+from scipy.sparse.linalg import spsolve
 
 from ..errors import SolverError
 from ..linear_program import BASIC, LpBasis, LpMethod, LpStatus, solve_lp
@@ -149,7 +150,7 @@ class LimitLP(LimitRows):
         # often far from the window solution that would predict its rows (the seed-18 fuzz's case 20:
         # five rounds of 0.12 s at 956 free samples where the LP with every row took 0.17 s)
         lazy = self._lazy(K) if mode == "scaled" and seg.n_free < K else None
-        point = start if mode != "scaled" and start is not None and _same_columns(start, K, seg) else None
+        point = start if mode != "scaled" else None
         for i in range(MAX_ROW_ROUNDS):
             if i == LAZY_ROUNDS:
                 lazy = None  # the prediction keeps missing: every row from here (rows added: still warm)
@@ -294,7 +295,12 @@ class LimitLP(LimitRows):
             **HIGHS_OPTIONS,
         )
         start = warm.carried(keys, a.cost.size) if warm is not None else None
-        x0 = _start_point(a, point.x) if start is None and point is not None else None
+        x0 = None
+        if start is None and point is not None:
+            if _same_columns(point, K, seg):
+                x0 = _start_point(a, point.x)
+            else:
+                x0 = _point_from_commands(a, seg, _resampled(point.u / self.um, K), self.slew)
         res = None
         if start is not None or x0 is not None:
             res = solve_lp(**lp, method=LpMethod.DUAL_SIMPLEX, start_basis=start, start_point=x0, return_basis=True)
@@ -448,6 +454,49 @@ def _start_point(a: Assembled, x: np.ndarray) -> np.ndarray | None:
             if neg.any():
                 out[m + j] = max(0.0, float(np.max(need[rows[neg]] / -coef[neg])))
     return np.clip(out, a.lower, a.upper)
+
+
+def _resampled(v: np.ndarray, K: int) -> np.ndarray:
+    """``v`` stretched to ``K`` samples by normalised time (nearest sample)."""
+    j = np.minimum(np.rint(np.arange(K) * (v.size / K)).astype(int), v.size - 1)
+    return v[j]
+
+
+def _point_from_commands(a: Assembled, seg: Segments, v: np.ndarray, slew: float | None) -> np.ndarray | None:
+    """A point of the assembled LP near the commands ``v`` (normalised, ``K`` samples): free samples as
+    they are, each run's level its mean (a ramp's: its first sample), the chain states from the chain
+    equalities, ``t`` at its bound, the total-variation columns from their rows.  None if the chain
+    system is singular."""
+    n = a.cost.size
+    x = np.zeros(n)
+    F = a.free
+    x[a.uvar[F]] = v[F]
+    for r in range(seg.start.size):
+        p, q = seg.start[r], seg.end[r]
+        x[a.lvar[r]] = v[p] if (slew is not None and seg.slope[r]) else float(np.mean(v[p:q]))
+    x = np.clip(x, a.lower, a.upper)
+    x[: a.n_t] = a.lower[: a.n_t] if np.all(np.isfinite(a.lower[: a.n_t])) else x[: a.n_t]
+    chain = np.zeros(n, bool)
+    chain[a.n_t + F.size + seg.start.size : n - a.n_tv] = True
+    fixed = a.lower == a.upper
+    x[fixed] = a.lower[fixed]
+    unknown = chain & ~fixed
+    if unknown.any() and a.A_eq is not None:
+        E = sparse.csc_array(a.A_eq)
+        Eu = E[:, np.flatnonzero(unknown)]
+        rows = np.flatnonzero(np.diff(sparse.csr_array(Eu).indptr) > 0)
+        Eu = sparse.csc_array(sparse.csr_array(Eu)[rows])
+        rhs = a.b_eq[rows] - sparse.csr_array(E[:, np.flatnonzero(~unknown)])[rows] @ x[~unknown]
+        if Eu.shape[0] != Eu.shape[1]:
+            return None
+        try:
+            xu = spsolve(Eu, rhs)
+        except RuntimeError:
+            return None
+        if not np.all(np.isfinite(xu)):
+            return None
+        x[unknown] = xu
+    return _start_point(a, x[: n - a.n_tv])
 
 
 def _row_keys(a: Assembled) -> list:

@@ -17,6 +17,7 @@ from flexmotion_ros.core.constraints import lp as limit_lp
 from flexmotion_ros.core.constraints.level import Level
 from flexmotion_ros.core.constraints.limits import Limits
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
+from flexmotion_ros.core.constraints.structure import map_runs, solution_runs
 from flexmotion_ros.core.results import ProofKind
 
 from .test_planner import check_every_limit, feasible_state_space
@@ -272,7 +273,8 @@ def test_a_coarse_reference_that_meets_no_sequence_costs_a_feasibility_lp_not_th
 def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
     """A coarse level's reference (the smooth LP, and the feasibility question ``mode="reach"`` before it)
     is an LP over the same columns as the scaled probe at the same count and segments: it starts from the
-    probe's point (HiGHS builds its basis around it), never from nothing.  Each warm verdict and optimum
+    probe's point (HiGHS builds its basis around it), never from nothing; the accepted LP starts from a
+    point built from the probe's commands (:func:`.lp._point_from_commands`).  Each warm verdict and optimum
     is the cold solve's; the bench's 250 Hz reference took 3,021 simplex iterations cold and 1,224 warm
     (0.20 -> 0.12 s CPU).  On the old planner no LP had a start point.  The plan is exact, within
     every limit, and ``K - 1`` independently infeasible."""
@@ -289,9 +291,21 @@ def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
             warm.append((res.status, res.objective, cold.status, cold.objective))
         return res
 
+    real_solve = limit_lp.LimitLP.solve
+    smooth = []
+
+    def solve(self, K, seg=None, mode="scaled", t_fix=None, start=None):
+        if mode != "scaled":
+            smooth.append((round(1.0 / self.dt, 6), mode, t_fix is None, start is not None))
+        return real_solve(self, K, seg, mode, t_fix, start)
+
     monkeypatch.setattr(limit_lp, "solve_lp", solve_lp)
+    monkeypatch.setattr(limit_lp.LimitLP, "solve", solve)
     r = plan_limited_zoh(problem, rate, limits, unlimited)
     assert warm
+    # the accepted LP (t_fix None) at the final rate too, from another count's or other windows' commands
+    assert any(hz == rate and accepted for hz, _, accepted, _ in smooth)
+    assert all(started for *_, started in smooth), smooth
     for status, objective, cold_status, cold_objective in warm:
         assert status is cold_status
         if status is limit_lp.LpStatus.OPTIMAL:
@@ -300,3 +314,31 @@ def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
     K = r.sampled.samples
     assert r.minimal and r.lower_bound_samples == K
     assert not feasible_state_space(problem, K - 1, 1.0 / rate, limits)
+
+
+@pytest.mark.parametrize("which", ["deflection_max", "velocity_max", "slew_rate", None])
+def test_a_point_from_commands_meets_the_lps_rows(which):
+    """The accepted LP at the final rate starts from a point built from another solution's commands (other
+    windows, another count): its chain states come from the chain equalities.  Built from the LP's own
+    optimum it is that optimum again: every equality and inequality row met to rounding (checked on the
+    assembled matrices), the objective the LP's.  A point off by a chain equation would start HiGHS
+    from nonsense."""
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    rate = 50.0
+    unlimited, limits = _bench_limits(problem, rate)
+    if which is not None:
+        limits = limits.only(which)
+    K = plan_limited_zoh(problem, rate, limits, unlimited).sampled.samples + 2
+    lp = limit_lp.LimitLP(problem, 1.0 / rate, limits)
+    sol = lp.solve(K)
+    seg = map_runs(solution_runs(sol, lp.um, lp.slew), K, K, 2)
+    assert 0 < seg.n_free < K
+    smooth = lp.solve(K, seg, mode="smooth")
+    assert smooth is not None
+    a = lp.assemble(K, seg, "smooth", lp.run_rows[K])
+    x = limit_lp._point_from_commands(a, seg, smooth.u / lp.um, lp.slew)
+    assert x is not None
+    np.testing.assert_allclose(a.A_eq @ x, a.b_eq, atol=1e-8)
+    assert np.max(a.A_ub @ x - a.b_ub) <= 1e-8
+    assert np.all(x >= a.lower - 1e-12) and np.all(x <= a.upper + 1e-12)
+    assert a.cost @ x == pytest.approx(a.cost @ smooth.x, rel=1e-9, abs=1e-9)
