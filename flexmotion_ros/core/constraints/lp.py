@@ -66,7 +66,7 @@ from scipy.ndimage import maximum_filter1d
 from scipy.sparse.linalg import spsolve
 
 from ..errors import SolverError
-from ..linear_program import BASIC, LpBasis, LpMethod, LpStatus, solve_lp
+from ..linear_program import BASIC, LpBasis, LpMethod, LpSolution, LpStatus, solve_lp
 from ..sampled.lp_tools import correct_arrival
 from ..tolerances import HIGHS_OPTIONS, ROW_RTOL
 from .assembly import Assembled, LimitRows
@@ -280,7 +280,6 @@ class LimitLP(LimitRows):
         a = self.assemble(K, seg, mode, extra, t_fix, lazy)
         F, uvar, lvar, nR, sl = a.free, a.uvar, a.lvar, seg.start.size, self.slew
         method = LpMethod.IPM if F.size > IPM_SAMPLES and self.blocks else LpMethod.CHOOSE
-        keys = _row_keys(a)
         limit = max(0.5, self.deadline - time.perf_counter()) if math.isfinite(self.deadline) else None
         # the planner's budget bounds every single LP too
         lp = dict(
@@ -294,7 +293,7 @@ class LimitLP(LimitRows):
             time_limit_s=limit,
             **HIGHS_OPTIONS,
         )
-        start = warm.carried(keys, a.cost.size) if warm is not None else None
+        start = warm.carried(a) if warm is not None else None
         x0 = None
         if start is None and point is not None:
             if _same_columns(point, K, seg):
@@ -346,7 +345,7 @@ class LimitLP(LimitRows):
         lam = -np.asarray(res.ub_marginals, float)[keep_rows] if a.meta.shape[0] else np.zeros(0)
         nu = np.asarray(res.eq_marginals, float)[: a.n_arrival] * a.row_scale
         sol = LPSolution(K, self.um * v, t, nu, a.meta[keep_rows], a.s[keep_rows], np.maximum(lam, 0.0), seg, levels, x)
-        return sol, (WarmStart(keys=keys, basis=res.basis) if res.basis is not None else None)
+        return sol, (WarmStart(rows=a, solution=res) if res.basis_reader is not None else None)
 
     def _add_violated_rows(self, sol: LPSolution, rows: list[set]) -> bool:
         """Add rows at every sample inside a run where a limited state exceeds ``t``; True if any.
@@ -392,27 +391,32 @@ class LimitLP(LimitRows):
 
 @dataclass(frozen=True, kw_only=True)
 class WarmStart:
-    """The optimal basis of one round of a limit LP, and which row each status belongs to.
+    """One round of a limit LP: its rows and its answer, whose optimal basis starts the next round.
+
+    Both are kept as they are and read only when a next round asks (:meth:`carried`): most rounds are
+    the last of their LP.
 
     Attributes
     ----------
-    keys : list of tuple
-        One key per row of the LP (:func:`_row_keys`), in HiGHS's order (inequalities, then equalities).
-    basis : LpBasis
+    rows : Assembled
+        The round's LP (its row keys, :func:`_row_keys`, in HiGHS's order: inequalities, then equalities).
+    solution : LpSolution
+        Its answer (``return_basis``).
     """
 
-    keys: list
-    basis: LpBasis
+    rows: Assembled
+    solution: LpSolution
 
-    def carried(self, keys: list, n_cols: int) -> LpBasis | None:
-        """The basis for the same LP with rows added (``keys``): old rows keep their status, new rows
+    def carried(self, a: Assembled) -> LpBasis | None:
+        """The basis for the same LP with rows added (``a``): old rows keep their status, new rows
         are basic (their slacks), so the number of basic variables stays the number of rows.  None
         when the LP is not this one with rows added (other columns, a row gone, keys not unique)."""
-        b = self.basis
-        if b.col_status.size != n_cols or b.row_status.size != len(self.keys):
+        b = self.solution.basis
+        old_keys, keys = _row_keys(self.rows), _row_keys(a)
+        if b is None or b.col_status.size != a.cost.size or b.row_status.size != len(old_keys):
             return None
-        old = dict(zip(self.keys, b.row_status.tolist()))
-        if len(old) != len(self.keys) or len(set(keys)) != len(keys) or not old.keys() <= set(keys):
+        old = dict(zip(old_keys, b.row_status.tolist()))
+        if len(old) != len(old_keys) or len(set(keys)) != len(keys) or not old.keys() <= set(keys):
             return None
         rows = np.fromiter((old.get(k, BASIC) for k in keys), np.int8, len(keys))
         return LpBasis(col_status=b.col_status, row_status=rows)
