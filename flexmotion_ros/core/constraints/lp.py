@@ -413,13 +413,18 @@ class WarmStart:
         when the LP is not this one with rows added (other columns, a row gone, keys not unique)."""
         b = self.solution.basis
         old_keys, keys = _row_keys(self.rows), _row_keys(a)
-        if b is None or b.col_status.size != a.cost.size or b.row_status.size != len(old_keys):
+        m = old_keys.shape[0]
+        if b is None or b.col_status.size != a.cost.size or b.row_status.size != m:
             return None
-        old = dict(zip(old_keys, b.row_status.tolist()))
-        if len(old) != len(old_keys) or len(set(keys)) != len(keys) or not old.keys() <= set(keys):
+        # every key numbered (equal rows of the stacked keys, equal numbers), without a Python loop over rows
+        _, ids = np.unique(np.vstack([old_keys, keys]), axis=0, return_inverse=True)
+        ids = ids.ravel()
+        old, new = ids[:m], ids[m:]
+        if np.unique(old).size != m or np.unique(new).size != new.size or not np.isin(old, new).all():
             return None
-        rows = np.fromiter((old.get(k, BASIC) for k in keys), np.int8, len(keys))
-        return LpBasis(col_status=b.col_status, row_status=rows)
+        status = np.full(int(ids.max(initial=-1)) + 1, BASIC, dtype=np.int8)
+        status[old] = b.row_status
+        return LpBasis(col_status=b.col_status, row_status=status[new])
 
 
 def _same_columns(sol: LPSolution, K: int, seg: Segments) -> bool:
@@ -503,18 +508,24 @@ def _point_from_commands(a: Assembled, seg: Segments, v: np.ndarray, slew: float
     return _start_point(a, x[: n - a.n_tv])
 
 
-def _row_keys(a: Assembled) -> list:
-    """A key per row of the assembled LP that is the same for the same row in another round.
+def _row_keys(a: Assembled) -> np.ndarray:
+    """A key per row of the assembled LP that is the same for the same row in another round: shape (rows, 6).
 
-    Limit rows by what they limit (kind, sample, index, sign, offset); the other inequalities and the
-    equalities by their position among their own kind (the same for the same ``K``, segments and mode).
+    Limit rows by what they limit (class 0, kind, sample, index, sign, offset); the other inequalities
+    (class 1) and the equalities (class 2) by their position among their own kind (the same for the same
+    ``K``, segments and mode).
     """
     meta = a.meta
     other = meta[:, 0] == -1  # the command rows (kind -2) have their sample and sign
-    ordinal = np.cumsum(other) - 1
-    keys = [
-        ("o", int(o)) if oth else (int(m[0]), int(m[1]), int(m[2]), float(m[3]), float(sv))
-        for m, sv, oth, o in zip(meta.tolist(), a.s.tolist(), other.tolist(), ordinal.tolist())
-    ]
     n_eq = a.b_eq.size if a.b_eq is not None else 0
-    return keys + [("e", i) for i in range(n_eq)]
+    keys = np.zeros((meta.shape[0] + n_eq, 6))
+    ub = keys[: meta.shape[0]]
+    ub[:, 0] = other
+    ub[:, 1:4] = np.trunc(meta[:, :3])
+    ub[:, 4] = meta[:, 3]
+    ub[:, 5] = a.s
+    ub[other, 1:] = 0.0
+    ub[other, 2] = np.arange(np.count_nonzero(other))
+    keys[meta.shape[0] :, 0] = 2.0
+    keys[meta.shape[0] :, 2] = np.arange(n_eq)
+    return keys + 0.0  # -0.0 as 0.0

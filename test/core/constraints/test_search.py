@@ -342,3 +342,57 @@ def test_a_point_from_commands_meets_the_lps_rows(which):
     assert np.max(a.A_ub @ x - a.b_ub) <= 1e-8
     assert np.all(x >= a.lower - 1e-12) and np.all(x <= a.upper + 1e-12)
     assert a.cost @ x == pytest.approx(a.cost @ smooth.x, rel=1e-9, abs=1e-9)
+
+
+def test_a_warm_round_carries_each_rows_status_by_what_it_limits():
+    """A row round's start basis: every old row keeps its status (found by what it limits: kind, sample,
+    index, sign, offset; other rows by their position among their kind), every new row is basic.  Checked
+    against a reference built here with one Python tuple per row (the old code's keys); the keys are now
+    arrays, matched without a loop over rows."""
+    from flexmotion_ros.core.linear_program import LpBackend, LpBasis, LpSolution
+
+    problem = rest_to_rest(WB, 1.0, 1.0)
+    rate = 50.0
+    unlimited, limits = _bench_limits(problem, rate)
+    lp = limit_lp.LimitLP(problem, 1.0 / rate, limits)
+    K = unlimited.samples + 20
+    sol = lp.solve(K)
+    seg = map_runs(solution_runs(sol, lp.um, lp.slew), K, K, 2)
+    inner = np.flatnonzero(seg.run_of() >= 0)
+    few = [set(inner[::7].tolist()) for _ in lp.blocks]
+    more = [s | set(inner[3::5].tolist()) for s in few]
+    a1 = lp.assemble(K, seg, "scaled", few)
+    a2 = lp.assemble(K, seg, "scaled", more)
+    m1 = a1.b_ub.size + a1.b_eq.size
+    m2 = a2.b_ub.size + a2.b_eq.size
+    assert m2 > m1
+    rng = np.random.default_rng(3)
+    basis = LpBasis(col_status=np.zeros(a1.cost.size, np.int8), row_status=rng.integers(0, 5, m1).astype(np.int8))
+    answer = LpSolution(
+        status=limit_lp.LpStatus.OPTIMAL,
+        x=None,
+        objective=None,
+        eq_marginals=None,
+        ub_marginals=None,
+        message="",
+        backend=LpBackend.HIGHSPY,
+        basis_reader=lambda: basis,
+    )
+    got = limit_lp.WarmStart(rows=a1, solution=answer).carried(a2)
+
+    def tuple_keys(a):
+        other = a.meta[:, 0] == -1
+        ordinal = np.cumsum(other) - 1
+        keys = [
+            ("o", int(o)) if oth else (int(m[0]), int(m[1]), int(m[2]), float(m[3]), float(sv))
+            for m, sv, oth, o in zip(a.meta.tolist(), a.s.tolist(), other.tolist(), ordinal.tolist())
+        ]
+        return keys + [("e", i) for i in range(a.b_eq.size)]
+
+    old = dict(zip(tuple_keys(a1), basis.row_status.tolist()))
+    want = np.array([old.get(k, 1) for k in tuple_keys(a2)], np.int8)
+    assert got is not None
+    np.testing.assert_array_equal(got.row_status, want)
+    assert np.count_nonzero(want == 1) - np.count_nonzero(basis.row_status == 1) == m2 - m1
+    # an LP that is not the old one with rows added (a row gone) gets no basis
+    assert limit_lp.WarmStart(rows=a2, solution=answer).carried(a1) is None
