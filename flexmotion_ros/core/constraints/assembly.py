@@ -13,7 +13,6 @@ the three uses of the LP are described in :mod:`.lp`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,52 +22,10 @@ from ..sampled.sparse_rows import SparseRows
 from ..simulation.modal_response import ModalResponse
 from .limits import Cut, Limits
 from .responses import Block, KData, block_states, deflection_row, limit_blocks
-from .segments import COMMAND, CUT, SLEW, STATE, Lazy, Segments
+from .segments import COMMAND, CUT, SLEW, STATE, Assembled, Lazy, Segments
 
 #: Relative margin by which the accepted LP tightens every state and slew limit (absorbs the arrival correction).
 MARGIN = 1e-7
-
-
-@dataclass(frozen=True, kw_only=True)
-class Assembled:
-    """One assembled limit LP (HiGHS's input) and where its answer sits.
-
-    Attributes
-    ----------
-    cost, A_ub, b_ub, A_eq, b_eq, lower, upper
-        The LP ``min cost x`` s.t. ``A_ub x <= b_ub``, ``A_eq x = b_eq``, ``lower <= x <= upper``.
-    free : numpy.ndarray
-        Indices of the free samples.
-    uvar : numpy.ndarray
-        Column of each sample's command (``-1`` inside runs).
-    lvar : numpy.ndarray
-        Column of each run's level.
-    n_arrival : int
-        The arrival rows (the first equalities).
-    row_scale : numpy.ndarray
-        Scale of each arrival row (its multipliers are scaled back by it).
-    meta, s : numpy.ndarray
-        Kind, sample, index and sign of every inequality row (``-1`` kind: not a limit row), and the
-        offset of cut rows within their interval (s).
-    """
-
-    cost: np.ndarray
-    A_ub: object
-    b_ub: np.ndarray
-    A_eq: object
-    b_eq: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    free: np.ndarray
-    uvar: np.ndarray
-    lvar: np.ndarray
-    n_arrival: int
-    row_scale: np.ndarray
-    meta: np.ndarray
-    s: np.ndarray
-    #: The ``t`` columns (one per knot, first) and the total-variation columns (last).
-    n_t: int = 0
-    n_tv: int = 0
 
 
 class LimitRows:

@@ -14,6 +14,7 @@ import pytest
 from flexmotion_ros.core import ModalModel, MoveProblem, plan_time_optimal_zoh, rest_to_rest
 from flexmotion_ros.core.constraints import dual as limit_dual
 from flexmotion_ros.core.constraints import lp as limit_lp
+from flexmotion_ros.core.constraints import warm as limit_warm
 from flexmotion_ros.core.constraints.level import Level
 from flexmotion_ros.core.constraints.limits import Limits
 from flexmotion_ros.core.constraints.planner import plan_limited_zoh
@@ -274,7 +275,7 @@ def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
     """A coarse level's reference (the smooth LP, and the feasibility question ``mode="reach"`` before it)
     is an LP over the same columns as the scaled probe at the same count and segments: it starts from the
     probe's point (HiGHS builds its basis around it), never from nothing; the accepted LP starts from a
-    point built from the probe's commands (:func:`.lp._point_from_commands`).  Each warm verdict and optimum
+    point built from the probe's commands (:func:`.warm.point_from_commands`).  Each warm verdict and optimum
     is the cold solve's; the bench's 250 Hz reference took 3,021 simplex iterations cold and 1,224 warm
     (0.20 -> 0.12 s CPU).  On the old planner no LP had a start point.  The plan is exact, within
     every limit, and ``K - 1`` independently infeasible."""
@@ -336,7 +337,7 @@ def test_a_point_from_commands_meets_the_lps_rows(which):
     smooth = lp.solve(K, seg, mode="smooth")
     assert smooth is not None
     a = lp.assemble(K, seg, "smooth", lp.run_rows[K])
-    x = limit_lp._point_from_commands(a, seg, smooth.u / lp.um, lp.slew)
+    x = limit_warm.point_from_commands(a, seg, smooth.u / lp.um, lp.slew)
     assert x is not None
     np.testing.assert_allclose(a.A_eq @ x, a.b_eq, atol=1e-8)
     assert np.max(a.A_ub @ x - a.b_ub) <= 1e-8
@@ -378,7 +379,7 @@ def test_a_warm_round_carries_each_rows_status_by_what_it_limits():
         backend=LpBackend.HIGHSPY,
         basis_reader=lambda: basis,
     )
-    got = limit_lp.WarmStart(rows=a1, solution=answer).carried(a2)
+    got = limit_warm.WarmStart(rows=a1, solution=answer).carried(a2)
 
     def tuple_keys(a):
         other = a.meta[:, 0] == -1
@@ -395,4 +396,4 @@ def test_a_warm_round_carries_each_rows_status_by_what_it_limits():
     np.testing.assert_array_equal(got.row_status, want)
     assert np.count_nonzero(want == 1) - np.count_nonzero(basis.row_status == 1) == m2 - m1
     # an LP that is not the old one with rows added (a row gone) gets no basis
-    assert limit_lp.WarmStart(rows=a2, solution=answer).carried(a1) is None
+    assert limit_warm.WarmStart(rows=a2, solution=answer).carried(a1) is None
