@@ -22,6 +22,7 @@ the same bench, e.g. ``FLEXMOTION_TREE=/work/main``).
     python bench/fuel_limits.py
     python bench/fuel_limits.py --rate 250 --goal 1.0
     python bench/fuel_limits.py --limits-only --repeat 3
+    python bench/fuel_limits.py --limits-only --only all --repeat 7
 """
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ def _args() -> argparse.Namespace:
     p.add_argument("--slew", type=float, default=10.0)
     p.add_argument("--skip-limits", action="store_true", dest="skip_limits")
     p.add_argument("--limits-only", action="store_true", dest="limits_only", help="table 3 only")
+    p.add_argument(
+        "--only",
+        choices=("velocity", "deflection", "slew", "all"),
+        action="append",
+        help="table 3: only these rows (repeatable; 'all': all three limits together)",
+    )
     p.add_argument("--repeat", type=int, default=1, help="plan each limited case this many times (median)")
     p.add_argument(
         "--budget", type=float, default=None, help="the limited planner's wall-clock budget (s; default its own)"
@@ -156,7 +163,10 @@ def _limits(problem, rate, z) -> None:
         (f"slew_rate {ARGS.slew:g} N/s", both.only("slew_rate")),
         ("all three", both),
     ]
-    for name, lim in cases:
+    keys = ("velocity", "deflection", "slew", "all")
+    for key, (name, lim) in zip(keys, cases):
+        if ARGS.only and key not in ARGS.only:
+            continue
         try:
             runs = [timed(plan_limited_zoh, problem, rate, lim, z) for _ in range(max(ARGS.repeat, 1))]
         except FlexmotionError as exc:  # a refusal or an honest failure is a row too

@@ -18,7 +18,7 @@ import math
 from .level import Level
 from .limits import check_limits
 from .lp import LimitLP, LPUndecided
-from .segments import Segments
+from .segments import LPSolution, Segments
 from .structure import map_runs
 
 #: Window half-width (samples) of the predicted count's smooth LP (:func:`accept_predicted`), around the runs of
@@ -40,16 +40,17 @@ def accept(level: Level, K: int):
         # first in the level's own windows; only a sequence that passes every exact check as it is
         # counts, anything else (no solution, a cut, a missed sample) is left to the probe's windows as
         # before, so the search goes on as if this LP had not been tried
-        got = smooth_passes(lp, K, narrow)
+        got = smooth_passes(lp, K, narrow, start=level.sols[K])
         if got is not None:
             return got
-    seg = level.sols[K].segments
+    probe = level.sols[K]
+    seg = probe.segments
     for _attempt in ("this structure", "every sample free"):
         try:
-            sol = lp.solve(K, seg, mode="smooth")
+            sol = lp.solve(K, seg, mode="smooth", start=probe)
             if sol is None and seg.n_free < K:
                 seg = Segments.all_free(K)
-                sol = lp.solve(K, mode="smooth")
+                sol = lp.solve(K, mode="smooth", start=probe)
         except LPUndecided:
             sol = None
         if sol is None:
@@ -65,11 +66,12 @@ def accept(level: Level, K: int):
     return None
 
 
-def smooth_passes(lp: LimitLP, K: int, seg: Segments) -> tuple | None:
+def smooth_passes(lp: LimitLP, K: int, seg: Segments, start: LPSolution | None = None) -> tuple | None:
     """``(u, peaks, free)``: the smoothest sequence at ``K`` in ``seg`` if it passes every exact check as it
-    is (no cut, no missed sample); None otherwise (nothing learnt: no cut is kept)."""
+    is (no cut, no missed sample); None otherwise (nothing learnt: no cut is kept).  ``start``: a solution
+    whose commands start the LP (:meth:`.lp.LimitLP.solve`)."""
     try:
-        sol = lp.solve(K, seg, mode="smooth")
+        sol = lp.solve(K, seg, mode="smooth", start=start)
     except LPUndecided:
         return None
     if sol is None:
@@ -101,7 +103,7 @@ def accept_predicted(level: Level, K: int, lo: int, slope: float | None) -> tupl
     if not (1.0 < t < math.inf and t + slope < 1.0):
         return None
     for width in dict.fromkeys((ACCEPT_WIDTH, level.width)):  # each width once
-        got = smooth_passes(level.lp, K, map_runs(level.ref[0], level.ref[1], K, width))
+        got = smooth_passes(level.lp, K, map_runs(level.ref[0], level.ref[1], K, width), start=level.sols[K - 1])
         if got is not None:
             break
     if got is None:

@@ -13,7 +13,6 @@ the three uses of the LP are described in :mod:`.lp`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,49 +22,10 @@ from ..sampled.sparse_rows import SparseRows
 from ..simulation.modal_response import ModalResponse
 from .limits import Cut, Limits
 from .responses import Block, KData, block_states, deflection_row, limit_blocks
-from .segments import COMMAND, CUT, SLEW, STATE, Lazy, Segments
+from .segments import COMMAND, CUT, SLEW, STATE, Assembled, Lazy, Segments
 
 #: Relative margin by which the accepted LP tightens every state and slew limit (absorbs the arrival correction).
 MARGIN = 1e-7
-
-
-@dataclass(frozen=True, kw_only=True)
-class Assembled:
-    """One assembled limit LP (HiGHS's input) and where its answer sits.
-
-    Attributes
-    ----------
-    cost, A_ub, b_ub, A_eq, b_eq, lower, upper
-        The LP ``min cost x`` s.t. ``A_ub x <= b_ub``, ``A_eq x = b_eq``, ``lower <= x <= upper``.
-    free : numpy.ndarray
-        Indices of the free samples.
-    uvar : numpy.ndarray
-        Column of each sample's command (``-1`` inside runs).
-    lvar : numpy.ndarray
-        Column of each run's level.
-    n_arrival : int
-        The arrival rows (the first equalities).
-    row_scale : numpy.ndarray
-        Scale of each arrival row (its multipliers are scaled back by it).
-    meta, s : numpy.ndarray
-        Kind, sample, index and sign of every inequality row (``-1`` kind: not a limit row), and the
-        offset of cut rows within their interval (s).
-    """
-
-    cost: np.ndarray
-    A_ub: object
-    b_ub: np.ndarray
-    A_eq: object
-    b_eq: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    free: np.ndarray
-    uvar: np.ndarray
-    lvar: np.ndarray
-    n_arrival: int
-    row_scale: np.ndarray
-    meta: np.ndarray
-    s: np.ndarray
 
 
 class LimitRows:
@@ -215,16 +175,17 @@ class LimitRows:
                 cols = [var(a + 1, c), uvar[a]] + [var(a, cc) for cc in range(d)]
                 vals = [np.ones(a.size), np.full(a.size, -gh[0, c])] + [np.full(a.size, -Ph[c, cc]) for cc in range(d)]
                 E.add_many(np.column_stack(cols), np.column_stack(vals), np.zeros(a.size))
-            for r in range(nR):  # s_q = P^L s_p + psi_L level + slope R_L t
-                p, q = seg.start[r], seg.end[r]
+            if nR:  # s_q = P^L s_p + psi_L level + slope R_L t: one row per run and component, in that order
+                p, q = seg.start, seg.end
                 L = q - p
-                for c in range(d):
-                    cols = [var(q, c), lvar[r]] + [var(p, cc) for cc in range(d)]
-                    vals = [1.0, -psi[L, c]] + [-P[L, c, cc] for cc in range(d)]
-                    if sl is not None and seg.slope[r]:
-                        cols.append(T[p])
-                        vals.append(-sl * seg.slope[r] * R[L, c])
-                    E.add(np.array(cols), np.array(vals), 0.0)
+                rr = np.repeat(np.arange(nR), d)  # row (r, c): run r, component c
+                cc_ = np.tile(np.arange(d), nR)
+                pr, qr, Lr = p[rr], q[rr], L[rr]
+                cols = [var(qr, cc_), lvar[rr]] + [var(pr, cc) for cc in range(d)] + [T[pr]]
+                # a ramp's t term; 0 on a constant run (an explicit zero: HiGHS's input drops it)
+                ramp = -sl * seg.slope[rr] * R[Lr, cc_] if sl is not None else np.zeros(rr.size)
+                vals = [np.ones(rr.size), -psi[Lr, cc_]] + [-P[Lr, cc_, cc] for cc in range(d)] + [ramp]
+                E.add_many(np.column_stack(cols), np.column_stack(vals), np.zeros(rr.size))
             # limit rows at the knots (sample 0 is the initial state, sample K the target)
             at = kn[kn >= 1]
             for side, sgn in enumerate((1.0, -1.0)):
@@ -258,13 +219,17 @@ class LimitRows:
                     np.zeros(Fs.size),
                     meta=(COMMAND, Fs, 0, sgn),
                 )
-        for r in range(nR):
-            ends = [seg.start[r]] if not (sl is not None and seg.slope[r]) else [seg.start[r], seg.end[r] - 1]
-            for m in ends:
-                off = sl * seg.slope[r] * (m - seg.start[r]) if sl is not None else 0.0
-                for sgn in (1.0, -1.0):
-                    if off or scaled:
-                        U.add(np.array([lvar[r], T[m]]), np.array([sgn, sgn * off + ub_t]), ub_rhs)
+        if nR:  # per run, its start (and a ramp's last sample), the + and the - row
+            ramp = seg.slope != 0 if sl is not None else np.zeros(nR, bool)
+            rr = np.repeat(np.arange(nR), np.where(ramp, 2, 1))
+            mm = seg.start[rr].copy()
+            mm[1:][rr[1:] == rr[:-1]] = seg.end[rr[1:][rr[1:] == rr[:-1]]] - 1
+            off = sl * seg.slope[rr] * (mm - seg.start[rr]) if sl is not None else np.zeros(rr.size)
+            on = (off != 0.0) | scaled
+            rr, mm, off = rr[on], mm[on], off[on]
+            sg = np.tile([1.0, -1.0], rr.size)
+            cols = np.column_stack([np.repeat(lvar[rr], 2), np.repeat(T[mm], 2)])
+            U.add_many(cols, np.column_stack([sg, sg * np.repeat(off, 2) + ub_t]), np.full(sg.size, ub_rhs))
         # slew rows and total variation on every step that is not inside a run
         edges = np.arange(K + 1)
         inside = np.zeros(K + 1, bool)
@@ -376,6 +341,8 @@ class LimitRows:
             row_scale=row_scale,
             meta=U.meta_array(),
             s=U.s_array(),
+            n_t=int(kn.size),
+            n_tv=0 if tvar is None else int(tvar.size),
         )
 
     def _run_states(self, ks, c, bi, seg, run, kd, var, lvar, T):

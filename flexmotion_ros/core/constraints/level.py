@@ -234,7 +234,7 @@ class Level:
         try:
             if reach_first and any(b.mode is not None for b in self.lp.blocks) and not self._reaches(K, t_fix):
                 return solution_runs(sol, self.lp.um, self.lp.slew), K
-            smooth = self.lp.solve(K, sol.segments, mode="smooth", t_fix=t_fix)
+            smooth = self.lp.solve(K, sol.segments, mode="smooth", t_fix=t_fix, start=sol)
         except SolverError:
             smooth = None
         if smooth is not None:
@@ -245,7 +245,8 @@ class Level:
         """False only on HiGHS's verdict that no sequence in ``K``'s segments meets the smooth LP's rows
         (limits scaled by ``t_fix``, mid-interval rows included); no verdict counts as True."""
         try:
-            return self.lp.solve(K, self.sols[K].segments, mode="reach", t_fix=t_fix) is not None
+            sol = self.sols[K]
+            return self.lp.solve(K, sol.segments, mode="reach", t_fix=t_fix, start=sol) is not None
         except LPUndecided:
             return True
 

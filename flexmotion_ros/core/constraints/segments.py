@@ -1,5 +1,8 @@
 """What the limited planner's linear programs are over and what they return: :class:`Segments`, :class:`LPSolution`.
 
+:class:`Assembled` is one such LP as HiGHS's input (built by :mod:`.assembly`, read by :mod:`.lp` and
+:mod:`.warm`).
+
 The ``K`` commands of a limit LP (:mod:`.lp`) are free variables or share a
 *level* over a run (:class:`Segments`: constant, or a ramp at the slew limit);
 :class:`LPSolution` is one solve's commands, scale ``t`` and the dual values
@@ -88,3 +91,48 @@ class LPSolution:
     lam: np.ndarray  # their multipliers (>= 0)
     segments: Segments
     levels: np.ndarray
+    #: The LP's column values (None for a lifted solution): a start point for another LP over the same
+    #: columns (:meth:`.lp.LimitLP.solve`'s ``start``).
+    x: np.ndarray | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Assembled:
+    """One assembled limit LP (HiGHS's input) and where its answer sits.
+
+    Attributes
+    ----------
+    cost, A_ub, b_ub, A_eq, b_eq, lower, upper
+        The LP ``min cost x`` s.t. ``A_ub x <= b_ub``, ``A_eq x = b_eq``, ``lower <= x <= upper``.
+    free : numpy.ndarray
+        Indices of the free samples.
+    uvar : numpy.ndarray
+        Column of each sample's command (``-1`` inside runs).
+    lvar : numpy.ndarray
+        Column of each run's level.
+    n_arrival : int
+        The arrival rows (the first equalities).
+    row_scale : numpy.ndarray
+        Scale of each arrival row (its multipliers are scaled back by it).
+    meta, s : numpy.ndarray
+        Kind, sample, index and sign of every inequality row (``-1`` kind: not a limit row), and the
+        offset of cut rows within their interval (s).
+    """
+
+    cost: np.ndarray
+    A_ub: object
+    b_ub: np.ndarray
+    A_eq: object
+    b_eq: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    free: np.ndarray
+    uvar: np.ndarray
+    lvar: np.ndarray
+    n_arrival: int
+    row_scale: np.ndarray
+    meta: np.ndarray
+    s: np.ndarray
+    #: The ``t`` columns (one per knot, first) and the total-variation columns (last).
+    n_t: int = 0
+    n_tv: int = 0

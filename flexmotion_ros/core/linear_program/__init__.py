@@ -60,6 +60,7 @@ def solve_lp(
     crossover: bool = True,
     iteration_limit: int | None = None,
     start_basis: LpBasis | None = None,
+    start_point: np.ndarray | None = None,
     return_basis: bool = False,
 ) -> LpSolution:
     """``min cost^T x  s.t.  A_ub x <= b_ub,  A_eq x = b_eq,  lower <= x <= upper`` by HiGHS.
@@ -95,6 +96,10 @@ def solve_lp(
         Start the simplex from this basis (e.g. the optimum of the same LP before rows were added,
         their slacks basic): a warm start, same verdicts.  Ignored by the ``SCIPY`` backend, and when
         its sizes do not match the LP.
+    start_point : ndarray, shape (n,), optional
+        Start the simplex from a basis HiGHS builds around this point (``setSolution``; e.g. the optimum of
+        an LP with the same columns and another objective): a warm start, same verdicts.  Used only
+        without ``start_basis``; ignored by the ``SCIPY`` backend and when its size does not match.
     return_basis : bool
         Return the optimal basis in :attr:`LpSolution.basis` (``HIGHSPY`` backend).
 
@@ -120,13 +125,13 @@ def solve_lp(
     tolerances = (primal_feasibility_tolerance, dual_feasibility_tolerance)
     work = {"crossover": crossover, "iteration_limit": iteration_limit}
     if which is LpBackend.HIGHSPY:
-        work.update(start_basis=start_basis, want_basis=return_basis)
+        work.update(start_basis=start_basis, start_point=start_point, want_basis=return_basis)
     res = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, presolve, time_limit_s, tolerances, **work)
     if res.status is LpStatus.OTHER and presolve and which is LpBackend.HIGHSPY:
         # HiGHS 1.16's presolve can blow a badly scaled LP up (a friction LP: presolved entries of 7e58,
         # "Not Set") that its solver alone solves, and that scipy's bundled HiGHS solved with presolve:
         # no verdict with presolve asks once without it
-        work["start_basis"] = None
+        work["start_basis"] = work["start_point"] = None
         again = solve(c, A_ub, b_ub, A_eq, b_eq, lo, hi, method, False, time_limit_s, tolerances, **work)
         if again.status is not LpStatus.OTHER:
             return again

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import threading
+from functools import partial
 
 import numpy as np
 from scipy import sparse
@@ -131,6 +132,7 @@ def solve_highspy(
     crossover=True,
     iteration_limit=None,
     start_basis=None,
+    start_point=None,
     want_basis=False,
 ) -> LpSolution:
     n = c.size
@@ -191,6 +193,12 @@ def solve_highspy(
         )
     if start_basis is not None and start_basis.col_status.size == n and start_basis.row_status.size == row_lo.size:
         _set_basis(h, start_basis)
+    elif start_point is not None and np.size(start_point) == n:
+        # HiGHS turns a point without a basis into a starting basis in run() (its basisForSolution)
+        start = highspy.HighsSolution()
+        start.col_value = np.asarray(start_point, dtype=float).tolist()
+        start.value_valid = True
+        h.setSolution(start)
     h.run()
     model_status = h.getModelStatus()
     status = _STATUS.get(model_status, LpStatus.OTHER)
@@ -211,7 +219,7 @@ def solve_highspy(
     row_value = np.array(sol.row_value)
     row_dual = np.array(sol.row_dual)
     objective = float(h.getObjectiveValue())
-    basis = _get_basis(h) if want_basis else None
+    raw_basis = h.getBasis() if want_basis else None  # a copy: read into arrays only if asked for
     iterations = int(h.getInfo().simplex_iteration_count)
     h.clearSolver()
     # linprog's check of an "optimal" point (its status 4 otherwise): bounds, inequality slack, equality residual
@@ -240,28 +248,29 @@ def solve_highspy(
         ub_marginals=row_dual[:m_ub],
         message=message,
         backend=LpBackend.HIGHSPY,
-        basis=basis,
         iterations=iterations,
+        basis_reader=None if raw_basis is None else partial(_basis_arrays, raw_basis),
     )
 
 
 def _set_basis(h, basis: LpBasis) -> None:
     """Start HiGHS's simplex from ``basis`` (the model is passed; a basis it rejects is only not used)."""
-    status = highspy.HighsBasisStatus
+    status = [highspy.HighsBasisStatus(i) for i in range(5)]  # a table: 20 x faster than one call per entry
     b = highspy.HighsBasis()
-    b.col_status = [status(int(x)) for x in basis.col_status]
-    b.row_status = [status(int(x)) for x in basis.row_status]
+    b.col_status = [status[x] for x in np.asarray(basis.col_status).tolist()]
+    b.row_status = [status[x] for x in np.asarray(basis.row_status).tolist()]
     b.valid = True
     h.setBasis(b)
 
 
-def _get_basis(h) -> LpBasis | None:
-    b = h.getBasis()
+def _basis_arrays(b) -> LpBasis | None:
+    """A ``highspy.HighsBasis`` as arrays (each of its list attributes is converted anew on every access: once)."""
     if not b.valid:
         return None
+    cols, rows = b.col_status, b.row_status
     return LpBasis(
-        col_status=np.fromiter((int(x) for x in b.col_status), np.int8, len(b.col_status)),
-        row_status=np.fromiter((int(x) for x in b.row_status), np.int8, len(b.row_status)),
+        col_status=np.array([x.value for x in cols], dtype=np.int8).reshape(len(cols)),
+        row_status=np.array([x.value for x in rows], dtype=np.int8).reshape(len(rows)),
     )
 
 

@@ -236,11 +236,11 @@ def test_an_undecided_lp_is_never_read_as_infeasible(monkeypatch):
     real = limit_lp.LimitLP._solve_once
     seen = {}
 
-    def flaky(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
+    def flaky(self, K, seg, mode, *args):
         if self.dt == 1.0 / 50.0 and mode == "scaled" and not seen.get(K):
             seen[K] = True
             raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS Status 0: Not Set)")
-        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
+        return real(self, K, seg, mode, *args)
 
     monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", flaky)
     problem = rest_to_rest(WB, 1.0, 1.0)
@@ -689,11 +689,11 @@ def test_no_verdict_with_rows_left_out_is_decided_with_every_row(monkeypatch):
     real = limit_lp.LimitLP._solve_once
     refused = []
 
-    def no_verdict_when_lazy(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None):
+    def no_verdict_when_lazy(self, K, seg, mode, extra, t_fix=None, warm=None, lazy=None, point=None):
         if lazy is not None:
             refused.append(K)
             raise limit_lp.LPUndecided(f"linear program at {K} samples undecided (HiGHS: Unknown)")
-        return real(self, K, seg, mode, extra, t_fix, warm, lazy)
+        return real(self, K, seg, mode, extra, t_fix, warm, lazy, point)
 
     monkeypatch.setattr(limit_lp.LimitLP, "_solve_once", no_verdict_when_lazy)
     r = plan_limited_zoh(problem, rate, limits, unlimited)
