@@ -27,6 +27,7 @@ def warm_up() -> float:
             [0.5, 2.0, -0.4, -8.0, 3.2, 31.0, -21.0, -112.0, 125.0],
         ]
     )
+    coef.flags.writeable = False  # the planners pass ModalResponse's memoised (read-only) coefficients
     rigid = (0.5, 0.0, 1.0, -0.25, True)
     a = np.linspace(0.0, 3.0, 9)[:-1]
     b = a + 3.0 / 8.0

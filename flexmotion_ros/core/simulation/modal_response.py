@@ -304,6 +304,11 @@ class ModalResponse:
         ``S, ..., S^(k)`` on ``[e^{-sig tau} sin, e^{-sig tau} cos]``, shape ``(2N, k + 1)``.
         """
         nu = np.asarray(nu, dtype=float)
+        if self.w.size:
+            coef = self._switching_coefficients(nu, k)  # read-only, C-ordered (memoised)
+        else:
+            coef = np.zeros((0, k + 1))
+            coef.flags.writeable = False  # one type for the compiled kernels: read-only, as the memoised ones
         return (
             float(self.b0),
             float(self.c),
@@ -312,7 +317,7 @@ class ModalResponse:
             bool(self.include_position),
             np.ascontiguousarray(self.sig, dtype=float),
             np.ascontiguousarray(self.wd, dtype=float),
-            np.ascontiguousarray(self._switching_coefficients(nu, k)) if self.w.size else np.zeros((0, k + 1)),
+            coef,
         )
 
     def switching_derivative_bound_terms(self, nu: np.ndarray, order: int) -> tuple[float, np.ndarray]:

@@ -196,6 +196,18 @@ def test_warm_up_compiles_every_kernel(compiled):
         assert kernel.signatures  # compiled (or loaded from the cache) for the types the planners pass
 
 
+@needs_numba
+def test_after_warm_up_a_plan_compiles_nothing(compiled):
+    # the types a plan passes (read-only memoised coefficients, C-ordered arrays) are the ones warm_up compiled:
+    # a new signature would compile for seconds inside the first plan of a node
+    warm_up()
+    kernels = (kroots.isolate_and_refine, ksmoothed.smoothed_newton)
+    before = [len(k.signatures) for k in kernels]
+    plan_time_optimal(_random_move(0))
+    plan_time_optimal(_random_move(3))
+    assert [len(k.signatures) for k in kernels] == before
+
+
 def test_warm_up_is_free_on_the_numpy_path(monkeypatch):
     monkeypatch.setattr(backend, "ACTIVE", False)
     assert warm_up() == 0.0
