@@ -211,3 +211,17 @@ def test_after_warm_up_a_plan_compiles_nothing(compiled):
 def test_warm_up_is_free_on_the_numpy_path(monkeypatch):
     monkeypatch.setattr(backend, "ACTIVE", False)
     assert warm_up() == 0.0
+
+
+def test_without_numba_the_numpy_path_plans():
+    # the 'fast' extra absent: numba cannot be imported, the kernels are plain Python never called, the plan is made
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "from flexmotion_ros.core.kernels import backend, warm_up\n"
+        "from flexmotion_ros.core import ModalModel, plan_time_optimal, rest_to_rest\n"
+        "m = ModalModel(b0=0.5, c=0.0, omega=(2.0**0.5,), zeta=(0.0,), b=(1.0,))\n"
+        "p = plan_time_optimal(rest_to_rest(m, 1.0, 1.0))\n"
+        "print(backend.AVAILABLE, backend.ACTIVE, warm_up(), round(p.duration, 4), p.certified)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False", "0.0", "4.2179", "True"]  # Wie-Bernstein's optimum
