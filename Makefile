@@ -2,7 +2,7 @@
 #   make demo   # closed-loop demo (planner + plant over ROS 2), summary + plot
 #   make test   # the whole test suite and the linter (what CI runs: .ci/run)
 # Both create .venv on first use and install the package with ROS 2 Jazzy
-# from PyPI (the 'ros' extra), test tools and benchmark peers.
+# from PyPI (the 'ros' extra), test tools, benchmark peers and numba (the 'fast' extra).
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV ?= .venv
@@ -14,7 +14,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): setup.py package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[ros,test,bench]'
+	$(PY) -m pip install --quiet -e '.[ros,test,bench,fast]'
 	touch $(STAMP)
 
 demo: $(STAMP)

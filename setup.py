@@ -30,6 +30,9 @@ setup(
         "ros": ["ros-jazzy-rclpy", "ros-jazzy-common-interfaces", "ros-jazzy-rmw-fastrtps-cpp"],
         "test": ["pytest", "hypothesis", "colcon-common-extensions", "ruff", "control"],
         "bench": ["casadi", "ruckig"],
+        # compiled kernels of the planners' hot loops (core/kernels/); optional: without it the
+        # numpy path (the reference) runs, with the same answers
+        "fast": ["numba>=0.60"],
     },
     zip_safe=True,
     maintainer="flexmotion developers",

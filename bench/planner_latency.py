@@ -33,6 +33,11 @@ random 1-3-mode moves (:func:`random_problem`) planned by both workers:
 the same structure, levels and certificate status, the distribution of
 ``|dT| / T`` and switch differences, and both CPU medians.
 
+``--ab-kernels``: the same tables with this checkout as both workers, the
+"other" one on the pure-numpy path (``FLEXMOTION_KERNELS=numpy``), the
+"this" one on the default (numba kernels when installed): the two kernel
+paths of one tree, same answers and latency.
+
 ``--clock cpu`` times the planners (continuous, ZOH, ZOH stage alone) by the
 process's CPU time (``time.process_time``: what the wall time would be on an
 idle core; the numerics run single-threaded) instead of the wall clock; CasADi's
@@ -47,7 +52,7 @@ see the same load, and whether both gave the same certified optimum.
 Usage::
 
     OPENBLAS_NUM_THREADS=1 python bench/planner_latency.py [--repeats 20] [--casadi-n 100] [--clock cpu] [--lean-ab]
-        [--ab-tree /work/main [--ab-only] [--ab-random 300 --seed 1]]
+        [--ab-tree /work/main [--ab-only] [--ab-random 300 --seed 1]] [--ab-kernels --ab-only --ab-random 300]
 """
 
 from __future__ import annotations
@@ -359,8 +364,12 @@ def worker() -> None:
         print(json.dumps(reply), flush=True)
 
 
-def _start_worker(tree: str) -> subprocess.Popen:
-    env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+#: Extra environment of the "other" worker (``--ab-kernels``: ``FLEXMOTION_KERNELS=numpy``).
+OTHER_ENV: dict = {}
+
+
+def _start_worker(tree: str, extra_env: dict | None = None) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", **(extra_env or {}))
     return subprocess.Popen(
         [sys.executable, os.path.abspath(__file__), "--worker"],
         stdin=subprocess.PIPE,
@@ -389,7 +398,7 @@ def _compare(a: dict, b: dict) -> tuple[float, float, bool]:
 def random_ab(other: str, count: int, seed: int) -> None:
     """``--ab-random``: the same optimum as ``other``'s planner on ``count`` random 1-3-mode moves, and the latency."""
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    workers = {"other": _start_worker(other), "this": _start_worker(here)}
+    workers = {"other": _start_worker(other, OTHER_ENV), "this": _start_worker(here)}
     d, cpu, status_same, lean, errors = [], {"other": [], "this": []}, 0, 0, []
     try:
         for name in workers:
@@ -431,7 +440,7 @@ def random_ab(other: str, count: int, seed: int) -> None:
 def tree_ab(other: str, modes: list, repeats: int) -> None:
     """``--ab-tree``: this checkout's continuous planner against ``other``'s, alternating repeats."""
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    workers = {"other": _start_worker(other), "this": _start_worker(here)}
+    workers = {"other": _start_worker(other, OTHER_ENV), "this": _start_worker(here)}
 
     def ask(name: str, n: int, tr: float) -> dict:
         return _ask(workers[name], f"bench {n} {tr}")
@@ -540,11 +549,19 @@ def main() -> None:
     ap.add_argument("--ab-only", action="store_true", help="with --ab-tree: only that table")
     ap.add_argument("--ab-random", type=int, default=0, help="with --ab-tree: also this many random 1-3-mode moves")
     ap.add_argument("--seed", type=int, default=1, help="seed of --ab-random")
+    ap.add_argument(
+        "--ab-kernels",
+        action="store_true",
+        help="the A/B tables compare this checkout's numpy path (other: FLEXMOTION_KERNELS=numpy) with its default",
+    )
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         worker()
         return
+    if args.ab_kernels:
+        OTHER_ENV["FLEXMOTION_KERNELS"] = "numpy"
+        args.ab_tree = args.ab_tree or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     global clock
     clock = CLOCKS[args.clock]
     if args.ab_tree and args.ab_only:

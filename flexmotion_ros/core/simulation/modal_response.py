@@ -294,6 +294,36 @@ class ModalResponse:
         memo[key] = coef
         return coef
 
+    def switching_terms(self, nu: np.ndarray, k: int) -> tuple:
+        """The switching function's closed form as the compiled kernels take it (:mod:`...kernels.roots`).
+
+        ``(b0, c, nu_p, nu_v, has_position, sig, wd, coef)``: the rigid part
+        ``b0 (nu_p tau phi1(c tau) + nu_v e^{c tau})`` (``nu_p = 0`` and
+        ``has_position`` False for a free final position), the modes' decay
+        rates (1/s) and damped frequencies (rad/s), and the coefficients of
+        ``S, ..., S^(k)`` on ``[e^{-sig tau} sin, e^{-sig tau} cos]``, shape ``(2N, k + 1)``.
+        """
+        nu = np.asarray(nu, dtype=float)
+        if self.w.size:
+            coef = self._switching_coefficients(nu, k)  # read-only, C-ordered (memoised)
+        else:
+            coef = np.zeros((0, k + 1))
+            coef.flags.writeable = False  # one type for the compiled kernels: read-only, as the memoised ones
+        return (
+            float(self.b0),
+            float(self.c),
+            float(nu[0]) if self.include_position else 0.0,
+            float(nu[self.r - 1]),
+            bool(self.include_position),
+            np.ascontiguousarray(self.sig, dtype=float),
+            np.ascontiguousarray(self.wd, dtype=float),
+            coef,
+        )
+
+    def switching_derivative_bound_terms(self, nu: np.ndarray, order: int) -> tuple[float, np.ndarray]:
+        """The terms of :meth:`switching_derivative_bound_from` (:func:`.switching_bounds.derivative_bound_terms`)."""
+        return switching_bounds.derivative_bound_terms(self, nu, order)
+
     # ------------------------------------------- proved bounds on the switching function
     def switching_magnitude(self, nu: np.ndarray, tau_max: float) -> tuple[float, float]:
         """Sums of the magnitudes of the terms of ``S`` and ``S'`` on ``[0, tau_max]`` (its rounding unit).

@@ -88,20 +88,28 @@ def switching_derivative_bound_from(resp: SwitchingTerms, nu: np.ndarray, order:
     far from ``tau = 0`` on long, damped moves this is much tighter than
     :func:`switching_derivative_bound`.
     """
-    nu = np.asarray(nu, dtype=float)
     tau = np.asarray(tau, dtype=float)
+    rigid, amp = derivative_bound_terms(resp, nu, order)
+    bound = rigid * np.exp(resp.c * tau)
+    if resp.w.size:
+        bound = bound + np.exp(-np.outer(tau, resp.sig)) @ amp
+    return bound
+
+
+def derivative_bound_terms(resp: SwitchingTerms, nu: np.ndarray, order: int) -> tuple[float, np.ndarray]:
+    """The terms of :func:`switching_derivative_bound_from`: ``(rigid, amp)``, the bound being ``rigid e^{c tau} + amp . e^{-sigma tau}``."""
+    nu = np.asarray(nu, dtype=float)
     c = abs(resp.c)
     nv = abs(nu[resp.r - 1])
     if resp.include_position:
         rigid = abs(resp.b0) * (abs(nu[0]) + nv * c) * c ** (order - 1)
     else:
         rigid = abs(resp.b0) * nv * c**order
-    bound = rigid * np.exp(resp.c * tau)
+    amp = np.empty(0)
     if resp.w.size:
         a = nu[resp.r :: 2] * resp.bm / resp.wd - nu[resp.r + 1 :: 2] * resp.bm * resp.sig / resp.wd
         amp = np.hypot(a, nu[resp.r + 1 :: 2] * resp.bm) * resp.w**order
-        bound = bound + np.exp(-np.outer(tau, resp.sig)) @ amp
-    return bound
+    return float(rigid), amp
 
 
 def switching_zero_free(

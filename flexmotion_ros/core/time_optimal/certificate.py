@@ -154,7 +154,7 @@ def _certify_with(
         near[[0, -1]] = False
         grid = grid[~near]
     magnitude = system.switching_magnitude(nu, T)[0]  # the rounding unit of S, asked for three times
-    iso = isolate_roots(system, nu, T, grid, magnitude=magnitude)
+    iso = isolate_roots(system, nu, T, grid, magnitude=magnitude, compiled=True)
     unproved = iso.unproved
     tol = root_tolerance(system, nu, T, tau_sw, SWITCH_TIME_RTOL, magnitude=magnitude)
     # each proved zero matched to its nearest switch (the first of equals, as argmin), on Python

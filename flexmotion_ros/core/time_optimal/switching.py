@@ -22,6 +22,8 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import SolverError
+from ..kernels import backend
+from ..kernels import roots as kernel_roots
 from .root_refine import hermite_root, refine_roots
 from .zero_free import cell_points, cells_to_examine
 
@@ -213,6 +215,7 @@ def isolate_roots(
     grid: np.ndarray | None = None,
     order: int = TAYLOR_ORDER,
     magnitude: float | None = None,
+    compiled: bool = False,
 ) -> RootIsolation:
     """All sign changes of ``S`` on ``[0, T]``, isolated with proof.
 
@@ -235,7 +238,13 @@ def isolate_roots(
     cells.  ``order``
     is ``K``: higher proves more cells without bisection, lower is cheaper
     per cell.  ``magnitude``: ``system.switching_magnitude(nu, T)[0]`` when
-    the caller has it (the certificate needs it three times).
+    the caller has it (the certificate needs it three times).  ``compiled``:
+    the bisection and refinement by :func:`~..kernels.roots.isolate_and_refine`
+    when the compiled kernels are active and ``system`` offers its closed
+    form (``switching_terms``, a ``ModalResponse``) (the same proof; roots equal to rounding, which
+    near a tangency is ~1e-12 of ``T``: only the certificate, whose checks
+    carry tolerances, asks for it; the solver's iterations, where such a
+    difference can steer a hard case elsewhere, keep the numpy reference).
     """
     if grid is None:
         grid = sample_grid(system, T)
@@ -287,6 +296,26 @@ def isolate_roots(
         a, b = points[ia], points[ib]
         Da = D[:, ia]
         Sb, dSb = D[0, ib], D[1, ib]
+    if compiled and backend.ACTIVE and hasattr(system, "switching_terms"):
+        # the same bisection and refinement, compiled: one call instead of ~25 numpy calls per level
+        rigid_bound, amp = system.switching_derivative_bound_terms(nu, K + 1)
+        roots, unproved = kernel_roots.isolate_and_refine(
+            np.ascontiguousarray(a, dtype=float),
+            np.ascontiguousarray(b, dtype=float),
+            np.ascontiguousarray(Da, dtype=float),
+            np.ascontiguousarray(Sb, dtype=float),
+            np.ascontiguousarray(dSb, dtype=float),
+            *system.switching_terms(nu, K),
+            rigid_bound,
+            amp,
+            float(noise),
+            int(budget),
+            MAX_DEPTH,
+            _INV_FACTORIAL[1:K],
+            float(inv_fact_K),
+            16.0 * np.finfo(float).eps * float(mag0),
+        )
+        return RootIsolation(roots, sign0, int(unproved))
     br_a, br_b, br_Sa, br_Sb, br_da, br_db = [], [], [], [], [], []
     unproved = 0
     for depth in range(MAX_DEPTH + 1):
