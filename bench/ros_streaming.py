@@ -180,7 +180,7 @@ def run_config(args, priority: int) -> dict:
                 {
                     "latency_ms": (t_first - t_send) * 1e3,
                     "plan_ms": float(d["last_plan.plan_time_s"]) * 1e3,
-                    "planner_first_ms": float(d["last_plan.goal_to_first_command_s"]) * 1e3,
+                    "planner_first_ms": float(d.get("last_plan.goal_to_first_command_s", "nan")) * 1e3,
                     "samples": int(d["last_plan.samples"]),
                     "recv_periods_ms": np.diff(times) * 1e3,
                     "send_median_ms": float(d["last_plan.stream_period_median_ms"]),

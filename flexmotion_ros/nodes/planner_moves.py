@@ -345,7 +345,7 @@ class MoveHandling:
         config = self._config
         self._position = multi_axis.position_of(config, seg.states[-1])
         where = target if target is not None else self._position
-        self._status.moving(where if np.ndim(where) == 0 else positions_text(where), info)
+        self._status.moving(where if np.ndim(where) == 0 else positions_text(where), info, move=seg.info)
         stamp = messages.to_time(self._ros_time_of(seg.start))
         self._trajectory_pub.publish(
             multi_axis.planned_trajectory(config, seg.states, seg.commands, self.stream.dt, stamp, self._max_points)
