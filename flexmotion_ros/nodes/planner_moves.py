@@ -292,6 +292,8 @@ class MoveHandling:
             goal = multi_axis.resolve_target(config, target, kept_state)
             problem = move_problem(config, x0, goal)
             check_budgets(config, problem)  # both budgets in microseconds: an absurd goal never reaches the planner
+            if ticket is not None:  # the executor, waiting for this (planner_goals.HANDOVER_WAIT_S), resumes
+                ticket.handed_over.set()
             t0 = time.perf_counter()
             result = self._plan_to(config, problem, arrival_time)
             plan_time = time.perf_counter() - t0
