@@ -177,18 +177,29 @@ class PlanProcess:
         return self._boost
 
     def __call__(
-        self, config: PlannerConfig, problem: Any, rate_hz: float | None = None, *, warm_start: Any = None
+        self,
+        config: PlannerConfig,
+        problem: Any,
+        rate_hz: float | None = None,
+        *,
+        warm_start: Any = None,
+        urgent: bool = True,
     ) -> PlanResult:
         """Plan in the child; raises what ``plan_move`` raised there, or :class:`PlanProcessError`.
 
         ``warm_start``: ``plan_move``'s (a replan's guess, the rest of the plan being executed).
+        ``urgent``: a boosted child (:meth:`boost`) plans this one boosted; False (a plan nothing waits to
+        move on, e.g. ``~/plan``): at normal scheduling throughout.
         """
         with self._lock:
             if self.closed:
                 raise PlanProcessClosed(f"the planning process {self.name} was closed: the node is shutting down")
             if self.dead:
                 raise PlanProcessError(f"the planning process {self.name} ({self.pid}) is gone")
-            boost = self._boost
+            boost = self._boost if urgent else 0
+            if not boost and not self._lowered:  # this one is not urgent: normal scheduling throughout
+                set_process_priority(self.pid, 0)
+                self._lowered = True
             if boost and self._lowered:  # the last plan outlived its budget: this one starts boosted again
                 self._lowered = set_process_priority(self.pid, boost) is not None
             try:

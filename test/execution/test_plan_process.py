@@ -148,6 +148,8 @@ try:
     child.boost_budget_s = 1.0
     child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0)  # boosted again at the next plan's start
     out["again"] = policy()
+    child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0, urgent=False)  # ~/plan: nothing waits to move
+    out["not_urgent"] = policy()
     child.boost(0)
     out["off"] = policy()
 finally:
@@ -171,4 +173,5 @@ def test_a_boosted_planning_child_plans_under_sched_fifo_for_its_budget_only():
     assert out["after_short"] == fifo  # a plan within its budget: the child stays ready for the next
     assert out["after_long"] == other  # lowered once the budget ran out, before the answer came
     assert out["again"] == fifo
+    assert out["not_urgent"] == other
     assert out["off"] == other
