@@ -8,7 +8,8 @@ on ``~/goal`` (from rest, alternating ``+-goal``), and measures
 
 * goal -> first command: from publishing the goal to receiving the first
   command (planning + start of the stream + DDS both ways); the planner's own
-  planning time and goal-to-first-send (from ``/diagnostics``) beside it;
+  planning time and goal-to-first-send (from ``/diagnostics``: from the goal
+  callback to the first command's publish, on the planner's clock) beside it;
 * the period between consecutive commands of a move: at the planner (send
   times inside the stream thread, from ``/diagnostics``) and here (receive
   times: adds DDS and this process's executor); median, p99, max;
@@ -24,6 +25,9 @@ on ``~/goal`` (from rest, alternating ``+-goal``), and measures
 
 Each configuration runs with the stream thread under normal scheduling and
 under ``SCHED_FIFO`` (``stream_priority``), where the OS permits it.
+``--receiver-priority N`` runs this process's threads (the subscriber, as a
+real-time controller would be) under ``SCHED_FIFO`` N while the goals are
+sent: on a loaded machine its own wake-ups otherwise dominate the figure.
 
     python bench/ros_streaming.py
     python bench/ros_streaming.py --rate 1000 --moves 5 --priorities 0 50
@@ -64,6 +68,12 @@ def _args() -> argparse.Namespace:
     p.add_argument("--stops", type=int, default=5, help="moves stopped through ~/stop per configuration")
     p.add_argument(
         "--priorities", type=int, nargs="+", default=[0, 50], help="stream_priority values to run (0: normal)"
+    )
+    p.add_argument(
+        "--receiver-priority",
+        type=int,
+        default=0,
+        help="SCHED_FIFO priority of this process's threads (the subscriber) during the moves (0: normal)",
     )
     p.add_argument("-p", dest="extra", action="append", default=[], help="extra planner parameter NAME:=VALUE")
     p.add_argument(
@@ -134,6 +144,12 @@ def run_config(args, priority: int) -> dict:
     ex.add_node(node)
     spin = threading.Thread(target=ex.spin, daemon=True)
     spin.start()
+    if args.receiver_priority > 0:  # after the planner's fork (it must not inherit it); DDS's threads exist now
+        from flexmotion_ros.execution.realtime import raise_threads
+
+        refused = raise_threads(args.receiver_priority)
+        if refused:
+            print(f"receiver: {refused}", file=sys.stderr)
 
     def wait(pred, timeout: float, what: str) -> None:
         end = time.monotonic() + timeout
@@ -180,7 +196,7 @@ def run_config(args, priority: int) -> dict:
                 {
                     "latency_ms": (t_first - t_send) * 1e3,
                     "plan_ms": float(d["last_plan.plan_time_s"]) * 1e3,
-                    "planner_first_ms": float(d["last_plan.goal_to_first_command_s"]) * 1e3,
+                    "planner_first_ms": float(d.get("last_plan.goal_to_first_command_s", "nan")) * 1e3,
                     "samples": int(d["last_plan.samples"]),
                     "recv_periods_ms": np.diff(times) * 1e3,
                     "send_median_ms": float(d["last_plan.stream_period_median_ms"]),
@@ -245,6 +261,10 @@ def run_config(args, priority: int) -> dict:
             "last": last,
         }
     finally:
+        if args.receiver_priority > 0:  # the next configuration's planner starts under normal scheduling
+            from flexmotion_ros.execution.realtime import lower_threads
+
+            lower_threads()
         ex.shutdown(timeout_sec=1.0)
         spin.join(timeout=5.0)  # the executor thread ends before the node goes (else: terminate called)
         node.destroy_node()
@@ -280,10 +300,11 @@ def main() -> None:
     print(
         f"flexmotion_planner streaming, {Path(args.config).name}, {args.rate:g} Hz (nominal period {1e3 / args.rate:.3f} ms), "
         f"{args.moves} moves of {args.goal:g} per row; load average {load[0]:.1f} on {os.cpu_count()} CPUs"
+        + (f"; receiver SCHED_FIFO {args.receiver_priority}" if args.receiver_priority > 0 else "")
     )
     print()
     hdr = (
-        f"{'stream thread':<22}{'goal->1st cmd ms':>18}{'planning ms':>13}{'samples':>9}"
+        f"{'stream thread':<22}{'goal->1st cmd ms':>18}{'planner ms':>12}{'planning ms':>13}{'samples':>9}"
         f"{'send period ms (med/p99/max)':>31}{'recv period ms (med/p99/max)':>31}{'late max ms':>13}{'lost':>6}"
     )
     print(hdr)
@@ -292,6 +313,7 @@ def main() -> None:
         rows = res["rows"]
         lat = np.array([r["latency_ms"] for r in rows])
         plan = np.array([r["plan_ms"] for r in rows])
+        planner = np.array([r["planner_first_ms"] for r in rows])
         recv = np.concatenate([r["recv_periods_ms"] for r in rows])
         lost = sum(r["samples"] + 1 - r["received"] for r in rows)
         name = (
@@ -305,14 +327,15 @@ def main() -> None:
             max(r["send_max_ms"] for r in rows),
         )
         print(
-            f"{name:<22}{np.median(lat):>8.1f} (max {lat.max():5.1f}){np.median(plan):>11.1f}  {int(np.median([r['samples'] for r in rows])):>8}"
+            f"{name:<22}{np.median(lat):>8.1f} (max {lat.max():5.1f}){np.nanmedian(planner):>10.1f}{np.median(plan):>13.1f}  {int(np.median([r['samples'] for r in rows])):>8}"
             f"{send[0]:>13.3f} /{send[1]:>6.3f} /{send[2]:>7.3f}"
             f"{np.median(recv):>13.3f} /{np.percentile(recv, 99):>6.3f} /{recv.max():>7.3f}"
             f"{max(r['late_max_ms'] for r in rows):>13.3f}{lost:>6d}"
         )
     print()
-    print("goal->1st cmd: goal published here -> first command received here (median, max over moves); planning: the")
-    print("planner's plan_move time. send: periods between the planner's publish calls (worst move's p99/max);")
+    print("goal->1st cmd: goal published here -> first command received here (median, max over moves); planner: the")
+    print("planner's goal callback -> first command published (its clock); planning: its plan_move time.")
+    print("send: periods between the planner's publish calls (worst move's p99/max);")
     print("recv: periods between arrivals here (all moves pooled; includes DDS and this process). late max: the")
     print("worst delay of a send after its absolute deadline t0 + k/rate (deadlines never drift: late samples go")
     print("out at once, none is skipped). lost: commands planned + hold minus commands received.")

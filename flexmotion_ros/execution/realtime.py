@@ -81,6 +81,19 @@ def lower_threads(*, keep_fifo: Iterable[str] = ()) -> None:
         pass
 
 
+def set_process_priority(pid: int, priority: int) -> str | None:
+    """Process ``pid``'s main thread to ``SCHED_FIFO`` ``priority`` (1..99), or with 0 back to normal scheduling.
+
+    Returns why it was refused (not Linux, no permission, no such process), else None.
+    """
+    try:
+        policy = os.SCHED_FIFO if priority > 0 else os.SCHED_OTHER
+        os.sched_setscheduler(pid, policy, os.sched_param(max(0, int(priority))))
+    except (AttributeError, OSError) as exc:
+        return f"SCHED_FIFO priority {priority} for process {pid} refused ({exc})"
+    return None
+
+
 def normal_scheduling() -> None:
     """The calling thread back to normal scheduling (a thread about to do numerical work; best effort)."""
     try:
@@ -220,4 +233,4 @@ class SlackCollector:
         self.forced[generation] += int(forced)
 
 
-__all__ = ["SlackCollector", "lower_threads", "normal_scheduling", "raise_threads"]
+__all__ = ["SlackCollector", "lower_threads", "normal_scheduling", "raise_threads", "set_process_priority"]

@@ -68,6 +68,9 @@ class Request:
         Monotonic time (s) the request arrived.
     cancelled : str
         Non-empty once cancelled (the reason): its plan must not be installed.
+    handed_over : threading.Event
+        Set once the worker has done the request's own work up to its plan (see :meth:`RequestWorker.submit`),
+        and at the latest when it is answered.
     """
 
     kind: RequestKind
@@ -77,6 +80,7 @@ class Request:
     arrival_time: float | None = None
     requested_at: float = field(default_factory=time.monotonic)
     cancelled: str = ""
+    handed_over: threading.Event = field(default_factory=threading.Event)
     _answered: bool = False
 
     def reply(self, outcome: Any) -> None:
@@ -84,6 +88,7 @@ class Request:
         if self._answered:
             return
         self._answered = True
+        self.handed_over.set()
         self.answer(outcome)
 
 
@@ -140,11 +145,17 @@ class RequestWorker:
         with self._cond:
             return self._current
 
-    def submit(self, request: Request) -> None:
-        """Queue ``request``: a goal replaces (and answers as superseded) the goal waiting, a query waits in order."""
+    def submit(self, request: Request) -> bool:
+        """Queue ``request``: a goal replaces (and answers as superseded) the goal waiting, a query waits in order.
+
+        Returns True if the worker was idle (it takes this request next, at once): the caller may then
+        wait a little on :attr:`Request.handed_over` (the node's executor does, for a goal), so that the
+        worker prepares the plan before the caller's own work takes the interpreter lock back.
+        """
         old: Request | None = None
         busy = False
         with self._cond:
+            idle = self._current is None and self._goal is None and not self._queries
             if self._stop:
                 busy = True
             elif request.kind is RequestKind.GOAL:
@@ -161,6 +172,7 @@ class RequestWorker:
             request.reply(self._refused(request, why))
         if old is not None:
             old.reply(self._refused(old, f"superseded by a newer goal (from {request.source}) before it was planned"))
+        return idle and not busy
 
     def cancel(self, reason: str, queries: bool = False) -> int:
         """Cancel the goal waiting and the goal being planned (``queries``: the waiting queries too).

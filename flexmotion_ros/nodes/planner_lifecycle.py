@@ -62,6 +62,12 @@ class LifecycleTransitions:
                 f"the command stream runs in process {self.stream.process.pid} under SCHED_FIFO {p} (its other "
                 f"threads {max(1, p - 1)}); this process's threads "
                 + (f"SCHED_FIFO {max(1, p - 2)}" if self._lock_sharers_raised else "keep normal scheduling")
+                + (
+                    f"; goal planning SCHED_FIFO {self._children.goal.boosted} for the first "
+                    f"{self._children.goal.boost_budget_s * 1e3:.0f} ms of each plan"
+                    if self._children is not None and self._children.goal.boosted
+                    else ""
+                )
             )
         self._stops.start()
         self._lifecycle = "active"
@@ -82,6 +88,11 @@ class LifecycleTransitions:
         self._lock_sharers_raised = False
         if priority <= 0 or self._children is None:
             return
+        # goals are planned at the start of a plan under SCHED_FIFO too (below every thread of the stream's),
+        # for plan_process.BOOST_BUDGET_S of each: else any busy process delays the move's first command
+        error = self._children.goal.boost(max(1, priority - 3))
+        if error:
+            self.get_logger().warning(f"goal planning keeps normal scheduling: {error}")
         if isinstance(self.stream, RemoteStream):
             # The stream shares no lock with this process: its threads go two steps below the stream (below the
             # stream process's own), so that a loaded machine does not delay a stop's answer and splice.
@@ -114,6 +125,8 @@ class LifecycleTransitions:
         if self._lock_sharers_raised:  # no stream, no reason to outrank the machine's other processes
             lower_threads()
             self._lock_sharers_raised = False
+        if self._children is not None:
+            self._children.goal.boost(0)
         self._status.set_lifecycle("inactive")
         self.publish_diagnostics()
         return super().on_deactivate(state)

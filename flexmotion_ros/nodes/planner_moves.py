@@ -81,8 +81,13 @@ class Outcome:
     info: dict = field(default_factory=dict)
 
 
-def _plan_here(config: AnyConfig, problem, rate_hz: float | None, *, warm_start=None) -> PlanResult:
-    """``plan_move`` (``plan_multi_move`` for several inputs) in this process (looked up at each call: tests replace it)."""
+def _plan_here(
+    config: AnyConfig, problem, rate_hz: float | None, *, warm_start=None, urgent: bool = True
+) -> PlanResult:
+    """``plan_move`` (``plan_multi_move`` for several inputs) in this process (looked up at each call: tests replace it).
+
+    ``urgent`` is the planning child's (:meth:`~flexmotion_ros.execution.plan_process.PlanProcess.__call__`): no effect here.
+    """
     if warm_start is None:
         return plan_move(config, problem, rate_hz)
     return plan_move(config, problem, rate_hz, warm_start=warm_start)
@@ -220,12 +225,17 @@ class MoveHandling:
             return _plan_here
         return child
 
-    def _plan_to(self, config: AnyConfig, problem, arrival_time: float | None) -> PlanResult:
+    def _plan_to(self, config: AnyConfig, problem, arrival_time: float | None, urgent: bool = True) -> PlanResult:
         """``plan_move``; with ``arrival_time`` (s) method ``fixed_time`` (``trajectory.early_arrival`` if too early).
 
-        In the planning child for goals, or for stops (the final position free), when the node has them.
+        In the planning child for goals, or for stops (the final position free), when the node has them;
+        ``urgent`` (a move waits for it): boosted there under ``stream_priority`` (``~/plan``: not).
         """
-        plan = self._planner_for(problem)
+        planner = self._planner_for(problem)
+
+        def plan(c: AnyConfig, p, rate: float | None) -> PlanResult:
+            return planner(c, p, rate, urgent=urgent)
+
         if arrival_time is None:
             return plan(config, problem, config.rate_hz)
         timed = replace(config, method="fixed_time", options={**config.options, "arrival_time": float(arrival_time)})
@@ -292,8 +302,10 @@ class MoveHandling:
             goal = multi_axis.resolve_target(config, target, kept_state)
             problem = move_problem(config, x0, goal)
             check_budgets(config, problem)  # both budgets in microseconds: an absurd goal never reaches the planner
+            if ticket is not None:  # the executor, waiting for this (planner_goals.HANDOVER_WAIT_S), resumes
+                ticket.handed_over.set()
             t0 = time.perf_counter()
-            result = self._plan_to(config, problem, arrival_time)
+            result = self._plan_to(config, problem, arrival_time, urgent=execute)
             plan_time = time.perf_counter() - t0
             self._plan_times.append(plan_time)
             sampled = result.sampled
@@ -345,7 +357,7 @@ class MoveHandling:
         config = self._config
         self._position = multi_axis.position_of(config, seg.states[-1])
         where = target if target is not None else self._position
-        self._status.moving(where if np.ndim(where) == 0 else positions_text(where), info)
+        self._status.moving(where if np.ndim(where) == 0 else positions_text(where), info, move=seg.info)
         stamp = messages.to_time(self._ros_time_of(seg.start))
         self._trajectory_pub.publish(
             multi_axis.planned_trajectory(config, seg.states, seg.commands, self.stream.dt, stamp, self._max_points)

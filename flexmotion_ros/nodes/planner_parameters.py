@@ -98,7 +98,8 @@ def planner_specs() -> list[Spec]:
             "stream_priority",
             0,
             "1..99: run the command stream thread under SCHED_FIFO at this priority, and the node's other threads "
-            "(which share its interpreter lock) one step below while planning runs in child processes (Linux, needs "
+            "(which share its interpreter lock) one step below while planning runs in child processes, the goal-planning "
+            "child's first 50 ms of each plan three below (Linux, needs "
             "CAP_SYS_NICE or an rtprio limit; refused: a warning and normal scheduling); 0: normal scheduling. Fixed "
             "at start-up.",
             read_only=True,

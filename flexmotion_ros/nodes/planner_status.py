@@ -71,6 +71,8 @@ class StatusReporter:
         self._planning = ""  # the request being planned ("" if none)
         self._last_error: str | None = None
         self._last: dict[str, Any] = {}
+        self._move: object | None = None  # the move _last describes (moving())
+        self._first: tuple[object | None, float] = (None, float("nan"))  # the last first command reported
         self._target: float | None = target
         self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._period = float(period_s)
@@ -141,7 +143,7 @@ class StatusReporter:
         with self._lock:
             self._last_error = reason
 
-    def moving(self, target: float | None, info: Mapping[str, Any]) -> None:
+    def moving(self, target: float | None, info: Mapping[str, Any], move: object | None = None) -> None:
         """A move was installed: state ``moving``, its target and plan figures.
 
         Parameters
@@ -150,16 +152,29 @@ class StatusReporter:
             Where the move ends.
         info : mapping
             The plan's figures, reported as ``last_plan.<key>`` (replaces the previous ones).
+        move : object, optional
+            What identifies the move (its record): a first command reported for it before this call
+            (:meth:`first_command`) is kept.
         """
         with self._lock:
             self._state = "moving"
             self._target = target
             self._last = dict(info)
+            self._move = move
+            first_move, delay = self._first
+            if move is not None and first_move is move:
+                self._last["goal_to_first_command_s"] = delay
 
-    def first_command(self, delay_s: float) -> None:
-        """Record the time (s) from the goal to its first command (a move from idle)."""
+    def first_command(self, delay_s: float, move: object | None = None) -> None:
+        """Record the time (s) from the goal to its first command.
+
+        ``move`` (the object later given to :meth:`moving`): the stream may send the first command before
+        the installing thread reports the move (the stream runs apart); the delay then waits for it.
+        """
         with self._lock:
-            self._last["goal_to_first_command_s"] = float(delay_s)
+            self._first = (move, float(delay_s))
+            if move is None or self._move is move:
+                self._last["goal_to_first_command_s"] = float(delay_s)
 
     def finished(self, times: np.ndarray, lateness: np.ndarray) -> None:
         """The move ended: state ``idle`` and its stream timing.

@@ -168,7 +168,7 @@ class StreamGlue:
         if isinstance(rec, MoveRecord) and rec.from_idle:
             self._sent_at_start = self.stream.samples_sent - 1
         if isinstance(rec, MoveRecord):  # from idle, or a preemption / stop: request -> its first command
-            self._status.first_command(seg.started_at - rec.requested_at)
+            self._status.first_command(seg.started_at - rec.requested_at, move=rec)
 
     def _on_move_finished(self, seg: Segment) -> None:
         self._identification_move_ended()

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # Run in a fresh interpreter: a fork is safe only from a process with one thread (pytest may have more).
@@ -112,3 +114,64 @@ def test_a_plan_in_flight_when_the_node_shuts_down_is_refused_as_such_not_as_an_
     # in flight: answered, or refused as closed (close() may wait for the answer under the pipe's own lock)
     assert out["in_flight"] in ("planned", "PlanProcessClosed"), out
     assert out["after"] == "PlanProcessClosed", out  # not "is gone" (which made the node plan in-process)
+
+
+BOOST_SCRIPT = r"""
+import json, os
+from flexmotion_ros.core.config import PlannerConfig
+from flexmotion_ros.core.model.boundary import rest_to_rest
+from flexmotion_ros.core.model.modal_model import ModalModel
+from flexmotion_ros.execution.plan_process import PlanProcess
+
+try:
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+except (AttributeError, OSError) as exc:
+    print(json.dumps({"skip": str(exc)}))
+    raise SystemExit(0)
+cfg = PlannerConfig(model=ModalModel(b0=1.0, omega=(5.0, 13.0), zeta=(0.01, 0.02), b=(1.0, -0.7)), u_max=10.0,
+                    rate_hz=200.0)
+child = PlanProcess.fork("boosted")
+policy = lambda: os.sched_getscheduler(child.pid)
+out = {"before": policy()}
+try:
+    out["refused"] = child.boost(3)
+    out["boosted"] = [policy(), os.sched_getparam(child.pid).sched_priority]
+    child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0)  # well within the budget
+    out["after_short"] = policy()
+    child.boost_budget_s = 0.0  # every plan outlives it: the rest at normal scheduling
+    # the caller above the child, as the node's threads are (else the child may preempt it for its whole plan)
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(5))
+    child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0)
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    out["after_long"] = policy()
+    child.boost_budget_s = 1.0
+    child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0)  # boosted again at the next plan's start
+    out["again"] = policy()
+    child(cfg, rest_to_rest(cfg.model, cfg.u_max, 1.0), 200.0, urgent=False)  # ~/plan: nothing waits to move
+    out["not_urgent"] = policy()
+    child.boost(0)
+    out["off"] = policy()
+finally:
+    child.close()
+out["fifo"], out["other"] = os.SCHED_FIFO, os.SCHED_OTHER
+print(json.dumps(out))
+"""
+
+
+def test_a_boosted_planning_child_plans_under_sched_fifo_for_its_budget_only():
+    proc = subprocess.run(
+        [sys.executable, "-c", BOOST_SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    if "skip" in out:
+        pytest.skip(f"SCHED_FIFO not permitted here: {out['skip']}")
+    fifo, other = out["fifo"], out["other"]
+    assert out["before"] == other and out["refused"] is None
+    assert out["boosted"] == [fifo, 3]
+    assert out["after_short"] == fifo  # a plan within its budget: the child stays ready for the next
+    assert out["after_long"] == other  # lowered once the budget ran out, before the answer came
+    assert out["again"] == fifo
+    assert out["not_urgent"] == other
+    assert out["off"] == other

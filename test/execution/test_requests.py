@@ -157,3 +157,26 @@ def test_release_free_heap_returns_freed_memory_to_the_system():
     arrays = [np.ones(n) for n in np.random.default_rng(0).integers(100, 20_000, 2000)]
     del arrays[::2]  # holes in the heap that glibc keeps for reuse
     assert release_free_heap()
+
+
+def test_submit_says_whether_the_worker_was_idle_and_a_request_is_handed_over_by_its_answer_at_the_latest():
+    # the node's executor waits (briefly) on handed_over only for a goal an idle worker takes at once: the
+    # worker then prepares the plan before the executor's own round takes the interpreter lock back
+    rec = Recorder()
+    worker = RequestWorker(rec.handle, rec.refused)
+    worker.start()
+    try:
+        first = rec.request(RequestKind.GOAL, 1.0, "first")
+        assert worker.submit(first) is True
+        rec.started.wait(5.0)
+        assert not first.handed_over.is_set()  # the handler has not said so, nor answered yet
+        second = rec.request(RequestKind.GOAL, 2.0, "second")
+        assert worker.submit(second) is False  # busy: the caller must not wait for it
+        rec.release.set()
+        wait(lambda: len(rec.answers) == 2)
+        assert first.handed_over.is_set() and second.handed_over.is_set()
+    finally:
+        worker.stop()
+    late = rec.request(RequestKind.GOAL, 3.0, "late")
+    assert worker.submit(late) is False  # stopped: refused at once, never waited for
+    assert late.handed_over.is_set()

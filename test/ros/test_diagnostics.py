@@ -39,3 +39,27 @@ def test_status_is_published_during_a_long_plan(ros, monkeypatch):
     # before the planning mark is cleared: the status sent at the end of the request has it cleared)
     wait_for(lambda: (ros.probe.planner_status() or (0, "", {}))[1] in ("moving", "idle"), 5.0, "moving after the plan")
     wait_for(lambda: ros.probe.planner_status()[2]["planning"] == "", 2.0, "the planning mark cleared")
+
+
+class _FakeNode:
+    """What StatusReporter asks of its node before it starts: a publisher."""
+
+    def create_publisher(self, *args, **kwargs):
+        return None
+
+
+def test_first_command_sent_before_the_move_is_reported_is_kept():
+    # the stream (its own process) may send the first command -- and the follower report it -- before the
+    # planning thread reports the installed move: the delay was lost (bench/ros_streaming.py KeyError)
+    from flexmotion_ros.nodes.planner_status import StatusReporter
+
+    status = StatusReporter(_FakeNode(), 1.0, 0.0, dict)
+    first, second = object(), object()
+    status.first_command(0.004, move=first)
+    status.moving(0.5, {"samples": 10}, move=first)
+    assert status.status()[2]["last_plan.goal_to_first_command_s"] == 0.004
+    # the other order too; an older move's delay never labels a newer one
+    status.moving(0.0, {"samples": 11}, move=second)
+    assert "last_plan.goal_to_first_command_s" not in status.status()[2]
+    status.first_command(0.005, move=second)
+    assert status.status()[2]["last_plan.goal_to_first_command_s"] == 0.005
