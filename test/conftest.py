@@ -44,3 +44,12 @@ def spy(monkeypatch):
         return calls
 
     return install
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _compiled_kernels():
+    """Compile numba's kernels (or load them from its cache) once, before any test, so that no test's
+    timing or timeout pays the first compilation (seconds on a fresh clone), and forked planners inherit them."""
+    from flexmotion_ros.core.kernels import warm_up
+
+    warm_up()

@@ -44,6 +44,7 @@ from typing import Any
 
 from ..core import errors
 from ..core.config import PlannerConfig
+from ..core.kernels import warm_up
 from ..core.multi_input.dispatch import plan as plan_move  # plan_move, or plan_multi_move for several inputs
 from ..core.results import PlanResult
 from .realtime import set_process_priority
@@ -134,6 +135,9 @@ class PlanProcess:
         """Fork the child (the caller must have one thread only: a fork copies no other thread)."""
         if threading.active_count() > 1:
             raise RuntimeError(f"fork the planning process before any thread starts ({threading.active_count()} run)")
+        # compile (or load from numba's cache) the kernels before the fork: the child inherits them, so its
+        # first plan neither compiles nor outlives a priority boost's budget loading them
+        warm_up()
         to_child_r, to_child_w = os.pipe()
         to_parent_r, to_parent_w = os.pipe()
         sys.stdout.flush()
