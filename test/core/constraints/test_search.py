@@ -78,6 +78,23 @@ def _bench_limits(problem, rate):
     return unlimited, Limits(0.8 * peak_v, (0.6 * peak_q,), 10.0)
 
 
+def _warm_against_cold(monkeypatch, key):
+    """Wrap ``solve_lp``: every LP given ``key`` (a start basis or point) is solved again cold; the list
+    returned fills with ``(warm status, warm optimum, cold status, cold optimum)`` per such LP."""
+    real = limit_lp.solve_lp
+    warm = []
+
+    def solve_lp(**kw):
+        res = real(**kw)
+        if kw.get(key) is not None:
+            cold = real(**{**kw, key: None})
+            warm.append((res.status, res.objective, cold.status, cold.objective))
+        return res
+
+    monkeypatch.setattr(limit_lp, "solve_lp", solve_lp)
+    return warm
+
+
 def test_row_rounds_start_from_the_previous_rounds_basis(monkeypatch):
     """A row round is the same LP with rows inside runs added: it starts from the previous optimum's
     basis (the new rows' slacks basic) and gives the cold solve's verdict and optimum.  On the old
@@ -86,17 +103,7 @@ def test_row_rounds_start_from_the_previous_rounds_basis(monkeypatch):
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
     unlimited, limits = _bench_limits(problem, rate)
-    real = limit_lp.solve_lp
-    warm = []
-
-    def solve_lp(**kw):
-        res = real(**kw)
-        if kw.get("start_basis") is not None:
-            cold = real(**{**kw, "start_basis": None})
-            warm.append((res.status, res.objective, cold.status, cold.objective))
-        return res
-
-    monkeypatch.setattr(limit_lp, "solve_lp", solve_lp)
+    warm = _warm_against_cold(monkeypatch, "start_basis")
     r = plan_limited_zoh(problem, rate, limits, unlimited)
     assert warm
     for status, objective, cold_status, cold_objective in warm:
@@ -282,15 +289,7 @@ def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
     problem = rest_to_rest(WB, 1.0, 1.0)
     rate = 50.0
     unlimited, limits = _bench_limits(problem, rate)
-    real = limit_lp.solve_lp
-    warm = []
-
-    def solve_lp(**kw):
-        res = real(**kw)
-        if kw.get("start_point") is not None:
-            cold = real(**{**kw, "start_point": None})
-            warm.append((res.status, res.objective, cold.status, cold.objective))
-        return res
+    warm = _warm_against_cold(monkeypatch, "start_point")
 
     real_solve = limit_lp.LimitLP.solve
     smooth = []
@@ -300,7 +299,6 @@ def test_the_reference_lps_start_from_the_probes_point(monkeypatch):
             smooth.append((round(1.0 / self.dt, 6), mode, t_fix is None, start is not None))
         return real_solve(self, K, seg, mode, t_fix, start)
 
-    monkeypatch.setattr(limit_lp, "solve_lp", solve_lp)
     monkeypatch.setattr(limit_lp.LimitLP, "solve", solve)
     r = plan_limited_zoh(problem, rate, limits, unlimited)
     assert warm
